@@ -1,0 +1,36 @@
+// bouncecal — calibrate contact-law damping from the sound of a bouncing ball.
+#include <cstdio>
+#include <exception>
+
+#include <CLI/CLI.hpp>
+
+#include "bouncecal/error.hpp"
+#include "commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"bouncecal " BOUNCECAL_VERSION
+               " — calibrate contact-law damping from the sound of a bouncing ball"};
+  app.set_version_flag("--version", std::string("bouncecal ") + BOUNCECAL_VERSION);
+  app.require_subcommand(1);
+  bouncecal::cli::RegisterDetect(app);
+  bouncecal::cli::RegisterAnalyze(app);
+  bouncecal::cli::RegisterSynth(app);
+  bouncecal::cli::RegisterLaws(app);
+  bouncecal::cli::RegisterSimulate(app);
+  bouncecal::cli::RegisterCalibrate(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : static_cast<int>(bouncecal::ErrorCode::kUsage);
+  } catch (const bouncecal::Error& e) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "bouncecal: %s\n", e.what());
+    return e.exit_code();
+  } catch (const std::exception& e) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "bouncecal: internal error: %s\n", e.what());
+    return static_cast<int>(bouncecal::ErrorCode::kInternal);
+  }
+  return 0;
+}

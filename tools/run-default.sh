@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# README command 1: set up, build, and analyze the bundled default recording.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+"$root/tools/build.sh" >&2
+exec "$root/build/bouncecal" analyze "$root/data/default_steel_copper.flac" \
+  --scene "$root/data/default_steel_copper.toml" "$@"

@@ -35,9 +35,13 @@ struct Ball {
   std::optional<double> poisson_ratio;
 
   double Radius() const { return 0.5 * diameter_m; }
-  double Volume() const;  // m^3
-  double Mass() const;    // kg, from mass_kg or density * volume
-  double Density() const; // kg/m^3, from density_kg_m3 or mass / volume
+  double Volume() const;   // m^3
+  double Mass() const;     // kg, from mass_kg or density * volume
+  double Density() const;  // kg/m^3, from density_kg_m3 or mass / volume
+  // Explicit value, else the material preset's, else NaN.
+  double ResolvedYoungsModulusPa() const;
+  double ResolvedPoissonRatio() const;
+  friend bool operator==(const Ball&, const Ball&) = default;
 };
 
 struct Surface {
@@ -50,26 +54,33 @@ struct Surface {
   double mass_kg = 0.0;
   double stiffness_n_m = 0.0;
   double damping_n_s_m = 0.0;
+  // Explicit value, else the material preset's, else NaN.
+  double ResolvedYoungsModulusPa() const;
+  double ResolvedPoissonRatio() const;
+  friend bool operator==(const Surface&, const Surface&) = default;
 };
 
 struct Environment {
-  double g_m_s2 = 9.8;                   // seed 002 uses 9.8
-  double air_density_kg_m3 = 1.2;        // PHYSICS.md §2
-  double air_viscosity_pa_s = 1.81e-5;   // dry air, 20 °C (linear/Stokes drag)
-  double drag_coefficient = 0.47;        // smooth sphere, PHYSICS.md §2
+  double g_m_s2 = 9.8;                  // seed 002 uses 9.8
+  double air_density_kg_m3 = 1.2;       // PHYSICS.md §2
+  double air_viscosity_pa_s = 1.81e-5;  // dry air, 20 °C (linear/Stokes drag)
+  double drag_coefficient = 0.47;       // smooth sphere, PHYSICS.md §2
+  friend bool operator==(const Environment&, const Environment&) = default;
 };
 
 struct Drop {
-  std::optional<double> height_m = 0.2;        // release height of the ball's bottom above the plate
-  std::optional<double> impact_speed_m_s;      // first impact speed, instead of a height
-  double first_impact_time_s = 0.0;            // time origin of the first impact (simulation)
+  std::optional<double> height_m = 0.2;    // release height of the ball's bottom above the plate
+  std::optional<double> impact_speed_m_s;  // first impact speed, instead of a height
+  double first_impact_time_s = 0.0;        // time origin of the first impact (simulation)
+  friend bool operator==(const Drop&, const Drop&) = default;
 };
 
 struct Effects {
   DragModel drag = DragModel::kNone;
   bool buoyancy = false;
-  bool contact_duration = false;     // onsets include the previous impact's contact time
-  bool surface_compliance = false;   // plate as a mass on a spring (Surface::kSpringMass)
+  bool contact_duration = false;    // onsets include the previous impact's contact time
+  bool surface_compliance = false;  // plate as a mass on a spring (Surface::kSpringMass)
+  friend bool operator==(const Effects&, const Effects&) = default;
 };
 
 // The contact law chosen by the scene: a registry name and its parameters by name.
@@ -77,6 +88,7 @@ struct LawSpec {
   std::string name = "walton-braun";
   std::map<std::string, double> parameters;  // missing ones take the law's defaults
   std::string expression;                    // only for the "expression" law
+  friend bool operator==(const LawSpec&, const LawSpec&) = default;
 };
 
 // Limits of a simulation run.
@@ -84,6 +96,7 @@ struct SimulationLimits {
   double horizon_s = 60.0;
   int max_impacts = 10000;
   double rest_speed_m_s = 1e-4;  // below this arrival speed the ball is considered at rest
+  friend bool operator==(const SimulationLimits&, const SimulationLimits&) = default;
 };
 
 struct Scene {
@@ -101,6 +114,7 @@ struct Scene {
   // Checks every value (positive sizes, finite numbers, one of height/speed, ...).
   // The message names the key and the value, prefixed by source when set.
   bool IsValid(std::string* error) const;
+  friend bool operator==(const Scene&, const Scene&) = default;
 };
 
 // Built-in material presets: density, Young's modulus, Poisson ratio.
@@ -111,7 +125,9 @@ struct MaterialPreset {
   double poisson_ratio;
 };
 const std::vector<MaterialPreset>& MaterialPresets();
-const MaterialPreset* FindMaterial(const std::string& name);
+const MaterialPreset* FindMaterial(const std::string& name);  // nullptr if unknown
+// Parses "none" / "linear" / "quadratic"; false otherwise.
+bool ParseDragModel(const std::string& text, DragModel* model);
 
 // Reads a TOML scene file. Unknown keys, wrong types, bad values: Error(kBadScene) whose
 // message has "FILE:LINE: key: problem". A missing file: Error(kInputMissing).

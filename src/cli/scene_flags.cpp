@@ -1,0 +1,162 @@
+// The scene flags shared by analyze, simulate, synth and calibrate (scene_flags.hpp).
+//
+// Order of precedence: defaults < --scene FILE < flags. A flag that changes which quantity is
+// authoritative resets the other one (--mass clears the density, --impact-speed clears the
+// height, --material re-derives density/E/nu from the preset unless --density/--mass is given).
+// Bad flag values: Error(kBadParameter) naming the flag and the value. A scene that is invalid
+// after the overrides: Error(kBadScene).
+#include "scene_flags.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include "bouncecal/error.hpp"
+
+namespace bouncecal::cli {
+namespace {
+
+std::string Num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+double CheckPositive(const std::string& flag, double v) {
+  if (!(std::isfinite(v) && v > 0.0)) {
+    throw Error(ErrorCode::kBadParameter, flag + ": must be finite and > 0 (got " + Num(v) + ")");
+  }
+  return v;
+}
+
+std::string Trim(const std::string& s) {
+  const size_t b = s.find_first_not_of(" \t");
+  if (b == std::string::npos) return "";
+  const size_t e = s.find_last_not_of(" \t");
+  return s.substr(b, e - b + 1);
+}
+
+}  // namespace
+
+void AddSceneFlags(CLI::App* sub, SceneFlags* flags, bool with_law) {
+  sub->add_option("--scene", flags->scene_file, "scene file (TOML); flags override it");
+  sub->add_option("--height", flags->height_m, "drop height of the ball's bottom, m");
+  sub->add_option("--impact-speed", flags->impact_speed_m_s,
+                  "first impact speed instead of a height, m/s");
+  sub->add_option("--diameter", flags->diameter_m, "ball diameter, m");
+  sub->add_option("--density", flags->density_kg_m3, "ball density, kg/m^3 (or --mass)");
+  sub->add_option("--mass", flags->mass_kg, "ball mass, kg (or --density)");
+  sub->add_option("--material", flags->material,
+                  "ball material preset (steel, copper, glass, rubber, wood, pingpong, ...)");
+  sub->add_option("--drag", flags->drag, "air drag: none, linear or quadratic");
+  sub->add_flag("--buoyancy", flags->buoyancy, "correct gravity for air buoyancy");
+  sub->add_flag("--contact-duration", flags->contact_duration,
+                "subtract the (Hertz) contact duration from the intervals");
+  sub->add_option("--g", flags->g_m_s2, "gravitational acceleration, m/s^2");
+  if (with_law) {
+    sub->add_option("--law", flags->law, "contact law (see `bouncecal laws`)");
+    sub->add_option("--set", flags->law_sets, "law parameter NAME=VALUE (repeatable)");
+    sub->add_option("--expression", flags->expression,
+                    "force expression for the \"expression\" law");
+  }
+}
+
+Scene ResolveScene(const SceneFlags& flags) {
+  Scene scene;
+  if (!flags.scene_file.empty()) scene = LoadSceneFile(flags.scene_file);
+
+  if (flags.mass_kg && flags.density_kg_m3) {
+    throw Error(ErrorCode::kBadParameter, "--mass " + Num(*flags.mass_kg) + " and --density " +
+                                              Num(*flags.density_kg_m3) + ": give one of them");
+  }
+  if (flags.height_m && flags.impact_speed_m_s) {
+    throw Error(ErrorCode::kBadParameter, "--height " + Num(*flags.height_m) +
+                                              " and --impact-speed " +
+                                              Num(*flags.impact_speed_m_s) + ": give one of them");
+  }
+  if (!flags.material.empty()) {
+    const MaterialPreset* preset = FindMaterial(flags.material);
+    if (preset == nullptr) {
+      std::string known;
+      for (const MaterialPreset& p : MaterialPresets())
+        known += (known.empty() ? "" : ", ") + p.name;
+      throw Error(ErrorCode::kBadParameter,
+                  "--material " + flags.material + ": unknown material (known: " + known + ")");
+    }
+    scene.ball.material = flags.material;
+    scene.ball.youngs_modulus_pa.reset();
+    scene.ball.poisson_ratio.reset();
+    if (!flags.mass_kg && !flags.density_kg_m3) {
+      scene.ball.density_kg_m3 = preset->density_kg_m3;
+      scene.ball.mass_kg.reset();
+    }
+  }
+  if (flags.diameter_m) scene.ball.diameter_m = CheckPositive("--diameter", *flags.diameter_m);
+  if (flags.density_kg_m3) {
+    scene.ball.density_kg_m3 = CheckPositive("--density", *flags.density_kg_m3);
+    scene.ball.mass_kg.reset();
+  }
+  if (flags.mass_kg) {
+    scene.ball.mass_kg = CheckPositive("--mass", *flags.mass_kg);
+    scene.ball.density_kg_m3.reset();
+  }
+  if (flags.height_m) {
+    scene.drop.height_m = CheckPositive("--height", *flags.height_m);
+    scene.drop.impact_speed_m_s.reset();
+  }
+  if (flags.impact_speed_m_s) {
+    scene.drop.impact_speed_m_s = CheckPositive("--impact-speed", *flags.impact_speed_m_s);
+    scene.drop.height_m.reset();
+  }
+  if (!flags.drag.empty() && !ParseDragModel(flags.drag, &scene.effects.drag)) {
+    throw Error(ErrorCode::kBadParameter,
+                "--drag " + flags.drag + ": expected none, linear or quadratic");
+  }
+  if (flags.buoyancy) scene.effects.buoyancy = true;
+  if (flags.contact_duration) scene.effects.contact_duration = true;
+  if (flags.g_m_s2) scene.environment.g_m_s2 = CheckPositive("--g", *flags.g_m_s2);
+
+  // Law selection. Switching to another law drops the file's parameters for the old one.
+  std::string law = flags.law;
+  if (law.empty() && !flags.expression.empty()) law = "expression";
+  if (!law.empty() && law != scene.law.name) {
+    scene.law.name = law;
+    scene.law.parameters.clear();
+    scene.law.expression.clear();
+  }
+  if (!flags.expression.empty()) {
+    if (scene.law.name != "expression") {
+      throw Error(ErrorCode::kBadParameter,
+                  "--expression: only with --law expression (got --law " + scene.law.name + ")");
+    }
+    scene.law.expression = flags.expression;
+  }
+  for (const std::string& set : flags.law_sets) {
+    const size_t eq = set.find('=');
+    if (eq == std::string::npos) {
+      throw Error(ErrorCode::kBadParameter, "--set " + set + ": expected NAME=VALUE");
+    }
+    const std::string name = Trim(set.substr(0, eq));
+    const std::string text = Trim(set.substr(eq + 1));
+    if (name.empty()) throw Error(ErrorCode::kBadParameter, "--set " + set + ": empty NAME");
+    char* end = nullptr;
+    errno = 0;
+    const double value = text.empty() ? 0.0 : std::strtod(text.c_str(), &end);
+    if (text.empty() || end == nullptr || *end != '\0' || errno == ERANGE ||
+        !std::isfinite(value)) {
+      throw Error(ErrorCode::kBadParameter,
+                  "--set " + set + ": value of " + name + " is not a finite number");
+    }
+    scene.law.parameters[name] = value;
+  }
+
+  std::string error;
+  if (!scene.IsValid(&error)) {
+    throw Error(ErrorCode::kBadScene,
+                (flags.scene_file.empty() ? std::string("scene from flags: ") : "") + error +
+                    (flags.scene_file.empty() ? "" : " (after command-line overrides)"));
+  }
+  return scene;
+}
+
+}  // namespace bouncecal::cli

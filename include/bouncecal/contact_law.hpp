@@ -46,7 +46,7 @@ struct ParameterSpec {
   double lower = 0.0;       // physical bounds, inclusive; the fitter uses them
   double upper = 0.0;
   double default_value = 0.0;
-  bool damping = false;     // fitted by default; others (stiffness) are held unless freed
+  bool damping = false;  // fitted by default; others (stiffness) are held unless freed
 };
 
 // When a contact ends.
@@ -57,10 +57,12 @@ enum class ContactEnd {
 
 // Closed-form outcome of a single contact starting at delta = 0 with speed v_in.
 struct ContactOutcome {
-  double restitution = 0.0;      // v_out / v_in
+  double restitution = 0.0;  // v_out / v_in
   double contact_time_s = 0.0;
   double peak_overlap_m = 0.0;
   double peak_force_n = 0.0;
+  double end_overlap_m = 0.0;  // overlap when the contact ends (> 0 for kForceZero laws)
+  bool stuck = false;          // the ball never leaves (overdamped): restitution 0, time inf
 };
 
 class ContactLaw {
@@ -68,9 +70,9 @@ class ContactLaw {
   virtual ~ContactLaw() = default;
 
   // --- identity and parameters -------------------------------------------------------------
-  virtual std::string Name() const = 0;          // registry name, e.g. "hertz-tsuji"
-  virtual std::string Formula() const = 0;       // "F = k d^1.5 + eta d^0.25 d'", one line
-  virtual std::string Source() const = 0;        // paper + equation
+  virtual std::string Name() const = 0;     // registry name, e.g. "hertz-tsuji"
+  virtual std::string Formula() const = 0;  // "F = k d^1.5 + eta d^0.25 d'", one line
+  virtual std::string Source() const = 0;   // paper + equation
   virtual const std::vector<ParameterSpec>& Parameters() const = 0;
   // Values the law was created with, in the order of Parameters().
   virtual std::vector<double> ParameterValues() const = 0;
@@ -104,8 +106,8 @@ class ContactLaw {
   virtual double ElasticEnergy(std::span<const double> p, const ContactBody& body, double delta_m,
                                const double* state) const = 0;
   // Energy held in internal buffers (Jiang-Liu w_r); 0 for most laws.
-  virtual double InternalEnergy(std::span<const double> p, const ContactBody& body,
-                                double delta_m, const double* state) const;
+  virtual double InternalEnergy(std::span<const double> p, const ContactBody& body, double delta_m,
+                                const double* state) const;
 
   // --- closed forms, where they exist --------------------------------------------------------
   // Restitution e(v_in) and contact time for a contact starting at speed v_in (no gravity).
@@ -121,12 +123,14 @@ class ContactLaw {
   // e(v_in) = e. Seeds fits and serves as a test oracle.
   virtual std::optional<std::vector<double>> DampingForRestitution(std::span<const double> p,
                                                                    const ContactBody& body,
-                                                                   double e,
-                                                                   double v_in_m_s) const;
+                                                                   double e, double v_in_m_s) const;
   // e(v_in) and de/dp_i (same order as Parameters()), analytic or automatic; false where the
   // law has no closed form. The fitter uses it for exact Jacobians.
   virtual bool RestitutionGradient(std::span<const double> p, const ContactBody& body,
                                    double v_in_m_s, double* e, double* de_dp) const;
+  // Names of the closed forms this law provides ("restitution", "contact_time",
+  // "solve_contact", "damping_for_restitution", "restitution_gradient"), for `bouncecal laws`.
+  virtual std::vector<std::string> ClosedForms() const { return {}; }
 };
 
 }  // namespace bouncecal

@@ -116,7 +116,7 @@ struct SimPoint {
 
 class RecordingModel {
  public:
-  RecordingModel(const LawSetup& setup, const Scene& scene, const Recording& rec,
+  RecordingModel(const LawSetup& setup, const Scene& scene, const CalibrationInput& rec,
                  const CalibrationOptions& options, bool analytic)
       : setup_(setup),
         scene_(scene),
@@ -810,7 +810,7 @@ std::string Calibration::FullReport() const {
 }
 
 // =============================================================================================
-Calibration Calibrate(const std::vector<Recording>& recordings, const Scene& scene,
+Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Scene& scene,
                       const CalibrationOptions& options) {
   const auto t_start = std::chrono::steady_clock::now();
   std::string err;
@@ -999,6 +999,8 @@ Calibration Calibrate(const std::vector<Recording>& recordings, const Scene& sce
 
   Calibration c;
   c.law = setup.law->Name();
+  c.formula = setup.law->Formula();
+  c.source = setup.law->Source();
   c.strategy = options.strategy;
   c.derivatives = options.derivatives;
   c.analytic_jacobian = fp.analytic;
@@ -1347,7 +1349,7 @@ Calibration Calibrate(const std::vector<Recording>& recordings, const Scene& sce
 }
 
 // =============================================================================================
-std::vector<LawComparisonRow> CompareLaws(const std::vector<Recording>& recordings,
+std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& recordings,
                                           const Scene& scene, const CalibrationOptions& options) {
   std::vector<LawComparisonRow> rows;
   for (const LawInfo& info : RegisteredLaws()) {

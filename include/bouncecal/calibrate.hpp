@@ -12,7 +12,7 @@
 //
 //   CalibrationOptions o;                  // damping parameters free, trajectory strategy
 //   o.free_parameters = {"k"};             // also free the stiffness
-//   std::vector<Recording> recs = {{"drop.wav", detection.main()}};
+//   std::vector<CalibrationInput> recs = {{"drop.wav", detection.main()}};
 //   Calibration c = Calibrate(recs, scene, o);   // scene.law names the law and its start values
 //   if (c.outcome == FitOutcome::kConverged) std::cout << c.FullReport();
 //
@@ -80,9 +80,9 @@ struct CalibrationOptions {
 };
 
 // One recording's measured impacts (the main bounce sequence).
-struct Recording {
-  std::string name;   // file name, for messages and the report
-  Sequence sequence;  // impacts with timing sigmas
+struct CalibrationInput {  // one recording
+  std::string name;        // file name, for messages and the report
+  Sequence sequence;       // impacts with timing sigmas
 };
 
 enum class FitOutcome {
@@ -125,7 +125,9 @@ struct EOfVPoint {
 };
 
 struct Calibration {
-  std::string law;  // registry name
+  std::string law;      // registry name
+  std::string formula;  // the law's one-line formula and its source (paper + equation)
+  std::string source;
   FitStrategy strategy = FitStrategy::kTrajectory;
   DerivativeMode derivatives = DerivativeMode::kAuto;
   bool analytic_jacobian = false;  // kAuto found an analytic path for this law/scene
@@ -159,7 +161,7 @@ struct Calibration {
 
 // Fits scene.law (its parameters are start values and the held values) to the recordings.
 // Throws Error(kFitFailed / kBadParameter / kBadScene) as described above.
-Calibration Calibrate(const std::vector<Recording>& recordings, const Scene& scene,
+Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Scene& scene,
                       const CalibrationOptions& options);
 
 // Law comparison: fits every registered law (starting from its defaults; the "expression" law
@@ -169,7 +171,7 @@ struct LawComparisonRow {
   Calibration fit;
   double delta_aic = 0.0;  // AIC - best AIC
 };
-std::vector<LawComparisonRow> CompareLaws(const std::vector<Recording>& recordings,
+std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& recordings,
                                           const Scene& scene, const CalibrationOptions& options);
 // The ranked table as markdown-like text, with e(v) at `speeds` (m/s).
 std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,

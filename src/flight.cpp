@@ -290,6 +290,28 @@ double FlightModel::FlightTimeDerivative(double v0_m_s) const {
   return 0.0;
 }
 
+double FlightModel::ArrivalSpeedDerivative(double v0_m_s) const {
+  CheckFinite(v0_m_s, "v0", "ArrivalSpeedDerivative");
+  switch (drag_) {
+    case DragModel::kNone:
+      return 1.0;
+    case DragModel::kQuadratic: {
+      // d/dv0 [v0 (1 + x^2)^(-1/2)] = (1 + x^2)^(-3/2).
+      const double h = std::hypot(1.0, v0_m_s / p_);
+      return 1.0 / (h * h * h);
+    }
+    case DragModel::kLinear: {
+      // v_in = v_t (1 - e^{-y}), phi(y) = psi(x): dv_in/dv0 = e^{-y} psi'(x) / phi'(y).
+      const double x = v0_m_s * p_ / g_;
+      if (x == 0.0) return 1.0;
+      const double y = LinearDescentY(Psi(x));
+      const double dphi = -std::expm1(-y);
+      return dphi > 0.0 ? std::exp(-y) * (x / (1.0 + x)) / dphi : 1.0;
+    }
+  }
+  return 1.0;
+}
+
 double FlightModel::LaunchSpeedForFlightTime(double flight_time_s) const {
   CheckFinite(flight_time_s, "flight time", "LaunchSpeedForFlightTime");
   if (flight_time_s == 0.0) return 0.0;

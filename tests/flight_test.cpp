@@ -182,8 +182,11 @@ TEST(FlightTest, FlightTimeIsMonotoneAndDerivativeMatchesDifferences) {
       const double h = 1e-5 * v0;
       const double fd = (f.FlightTime(v0 + h) - f.FlightTime(v0 - h)) / (2 * h);
       EXPECT_NEAR(f.FlightTimeDerivative(v0), fd, 1e-7 * fd) << v0;
+      const double fa = (f.ArrivalSpeed(v0 + h) - f.ArrivalSpeed(v0 - h)) / (2 * h);
+      EXPECT_NEAR(f.ArrivalSpeedDerivative(v0), fa, 1e-7 * std::abs(fa) + 1e-12) << v0;
     }
     EXPECT_NEAR(f.FlightTimeDerivative(0.0), 2 / kG, 1e-12);
+    EXPECT_EQ(f.ArrivalSpeedDerivative(0.0), 1.0);
   }
 }
 

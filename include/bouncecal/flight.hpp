@@ -34,10 +34,12 @@ class FlightModel {
   double RiseTime(double v0_m_s) const;
   double ApexHeight(double v0_m_s) const;
   double FlightTime(double v0_m_s) const;
-  double ArrivalSpeed(double v0_m_s) const;       // speed when back at launch height
+  double ArrivalSpeed(double v0_m_s) const;                     // speed when back at launch height
   double LaunchSpeedForFlightTime(double flight_time_s) const;  // inverse of FlightTime
   // dFlightTime/dv0 (s per m/s), for error propagation.
   double FlightTimeDerivative(double v0_m_s) const;
+  // dArrivalSpeed/dv0 (dimensionless), for error propagation (1 without drag).
+  double ArrivalSpeedDerivative(double v0_m_s) const;
 
   // Fall from rest through height h >= 0.
   double FallTime(double height_m) const;

@@ -1,0 +1,292 @@
+// `bouncecal synth`: render a test recording of a bouncing ball and its ground truth.
+//
+//   bouncecal synth --preset steel-copper --seed 1 -o drop.flac
+//     -> drop.flac and drop.truth.json (the output path with its extension replaced)
+//
+// A preset gives the scene, e(v) and the render settings; --scene/scene flags replace or
+// override its scene, the other flags override its render settings.
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/atomic_file.hpp"
+#include "bouncecal/audio.hpp"
+#include "bouncecal/error.hpp"
+#include "bouncecal/synth.hpp"
+#include "commands.hpp"
+#include "scene_flags.hpp"
+
+namespace bouncecal::cli {
+namespace {
+namespace fs = std::filesystem;
+
+struct SynthFlags {
+  std::string preset = "steel-copper";
+  SceneFlags scene;
+  std::optional<double> rate_hz;
+  std::optional<std::uint64_t> seed;
+  std::optional<double> snr_db;
+  bool no_noise = false;
+  std::string noise;  // white | pink
+  std::optional<int> channels;
+  std::string plate;
+  std::optional<double> restitution;
+  std::optional<double> e0, e_slope, e_power;
+  std::optional<double> contact_s;
+  std::optional<double> min_interval_s;
+  std::optional<double> hum_hz, hum_db;
+  std::optional<int> distractors;
+  std::optional<double> distractor_db;
+  std::optional<double> clip_level;
+  std::optional<double> latency_ms;
+  std::optional<double> first_impact_s;
+  std::optional<int> drops;
+  double drop_gap_s = 1.5;
+  std::optional<double> tail_s, duration_s;
+  std::string subtype;
+  std::string output;
+  bool force = false;
+  bool json = false;
+  bool list_presets = false;
+};
+
+bool AnySceneFlag(const SceneFlags& f) {
+  return f.height_m || f.impact_speed_m_s || f.diameter_m || f.density_kg_m3 || f.mass_kg ||
+         !f.material.empty() || !f.drag.empty() || f.buoyancy || f.contact_duration || f.g_m_s2;
+}
+
+void Replace(std::string* s, const std::string& from, const std::string& to) {
+  for (std::size_t at = s->find(from); at != std::string::npos;
+       at = s->find(from, at + to.size())) {
+    s->replace(at, from.size(), to);
+  }
+}
+
+// The preset's scene with the scene flags applied (through ResolveScene, which reads a file).
+Scene PresetSceneWithFlags(const SynthSpec& spec, SceneFlags flags) {
+  if (!flags.scene_file.empty()) return ResolveScene(flags);
+  if (!AnySceneFlag(flags)) return spec.scene;
+  const fs::path tmp =
+      fs::temp_directory_path() /
+      ("bouncecal-synth-" + std::to_string(::getpid()) + "-" + spec.name + ".toml");
+  {
+    std::ofstream out(tmp);
+    out << SceneToToml(spec.scene);
+    if (!out) throw Error(ErrorCode::kInternal, tmp.string() + ": cannot write a temporary file");
+  }
+  flags.scene_file = tmp.string();
+  try {
+    Scene s = ResolveScene(flags);
+    fs::remove(tmp);
+    s.source.clear();
+    return s;
+  } catch (const Error& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    std::string msg = e.what();
+    Replace(&msg, tmp.string(), "preset " + spec.name);
+    throw Error(e.code(), msg);
+  }
+}
+
+std::string TruthPath(const std::string& audio_path) {
+  fs::path p(audio_path);
+  p.replace_extension(".truth.json");
+  return p.string();
+}
+
+void Run(const SynthFlags& f) {
+  if (f.list_presets) {
+    for (const std::string& n : SynthPresetNames()) {
+      const SynthSpec s = SynthPreset(n);
+      std::printf("%-14s %6.0f Hz  %zu ch  ball %s d=%g m on %s, drop %g m, %zu drop(s)\n",
+                  n.c_str(), s.render.sample_rate_hz, s.render.channels.size(),
+                  s.scene.ball.material.c_str(), s.scene.ball.diameter_m,
+                  s.scene.surface.material.c_str(), s.scene.drop.height_m.value_or(0.0),
+                  s.drops.size());
+    }
+    return;
+  }
+  if (f.output.empty()) throw Error(ErrorCode::kUsage, "synth: give the output file with -o FILE");
+
+  SynthSpec spec = SynthPreset(f.preset);
+  spec.scene = PresetSceneWithFlags(spec, f.scene);
+  if (!f.scene.scene_file.empty() || AnySceneFlag(f.scene)) spec.name += "+scene";
+
+  RenderOptions& r = spec.render;
+  if (f.rate_hz) r.sample_rate_hz = *f.rate_hz;
+  if (f.seed) r.seed = *f.seed;
+  if (f.snr_db) r.snr_db = *f.snr_db;
+  if (f.no_noise) r.snr_db.reset();
+  if (!f.noise.empty()) {
+    if (f.noise == "white") {
+      r.noise_color = NoiseColor::kWhite;
+    } else if (f.noise == "pink") {
+      r.noise_color = NoiseColor::kPink;
+    } else {
+      throw Error(ErrorCode::kBadParameter, "--noise " + f.noise + ": expected white or pink");
+    }
+  }
+  if (f.channels) {
+    if (*f.channels < 1 || *f.channels > 64) {
+      throw Error(ErrorCode::kBadParameter,
+                  "--channels " + std::to_string(*f.channels) + ": expected 1 to 64");
+    }
+    // Microphones progressively further away: lower gain, later arrival.
+    r.channels.clear();
+    for (int c = 0; c < *f.channels; ++c) {
+      r.channels.push_back(ChannelSpec{1.0 / (1.0 + 0.5 * c), 2.5e-4 * c});
+    }
+  }
+  if (!f.plate.empty()) r.plate_modes = PlateModes(f.plate);
+  if (f.restitution && (f.e0 || f.e_slope || f.e_power)) {
+    throw Error(ErrorCode::kBadParameter, "--restitution and --e0/--e-slope/--e-power: give one");
+  }
+  if (f.restitution) spec.restitution = RestitutionModel::Constant(*f.restitution);
+  if (f.e0 || f.e_slope || f.e_power) {
+    spec.restitution = RestitutionModel::PowerLaw(
+        f.e0.value_or(spec.restitution.e0),
+        f.e_slope.value_or(
+            spec.restitution.kind == RestitutionModel::Kind::kPowerLaw ? spec.restitution.c : 0.0),
+        f.e_power.value_or(spec.restitution.p));
+  }
+  if (f.contact_s) spec.truth.contact_s = *f.contact_s;
+  if (f.min_interval_s) spec.truth.min_interval_s = *f.min_interval_s;
+  if (f.hum_hz) r.hum_hz = *f.hum_hz;
+  if (f.hum_db) r.hum_db = *f.hum_db;
+  if (f.distractors) r.distractors = *f.distractors;
+  if (f.distractor_db) r.distractor_db = *f.distractor_db;
+  if (f.clip_level) r.clip_level = *f.clip_level;
+  if (f.latency_ms) r.latency_s = *f.latency_ms * 1e-3;
+  if (f.tail_s) r.tail_s = *f.tail_s;
+  if (f.duration_s) r.duration_s = *f.duration_s;
+  if (f.first_impact_s) {
+    const double shift = *f.first_impact_s - spec.drops.at(0).first_impact_s;
+    for (SynthDrop& d : spec.drops) d.first_impact_s += shift;
+  }
+  if (f.drops) {
+    if (*f.drops < 1 || *f.drops > 100) {
+      throw Error(ErrorCode::kBadParameter,
+                  "--drops " + std::to_string(*f.drops) + ": expected 1 to 100");
+    }
+    if (!(f.drop_gap_s >= 0.0)) throw Error(ErrorCode::kBadParameter, "--drop-gap must be >= 0");
+    // Each drop starts drop_gap_s after the previous one's last impact.
+    SynthSpec one = spec;
+    one.drops.resize(1);
+    Scene s0 = spec.scene;
+    s0.drop.first_impact_time_s = 0.0;
+    if (one.drops[0].height_m) s0.drop.height_m = *one.drops[0].height_m;
+    std::string err;
+    if (!s0.IsValid(&err)) throw Error(ErrorCode::kBadScene, err);
+    const auto truth = ImpactsFromRestitution(s0, spec.restitution, spec.truth);
+    const double length_s = truth.back().time_s - truth.front().time_s;
+    spec.drops.clear();
+    for (int i = 0; i < *f.drops; ++i) {
+      spec.drops.push_back(SynthDrop{one.drops[0].first_impact_s + i * (length_s + f.drop_gap_s),
+                                     one.drops[0].height_m});
+    }
+  }
+  std::string err;
+  if (!spec.IsValid(&err)) throw Error(ErrorCode::kBadParameter, "synth: " + err);
+
+  const std::string truth_path = TruthPath(f.output);
+  const WriteOptions wo{.force = f.force, .inputs = {f.scene.scene_file}};
+  CheckOutputPath(f.output, wo);
+  CheckOutputPath(truth_path, wo);
+  AudioWriteOptions ao;
+  ao.subtype = f.subtype;
+  if (ao.subtype.empty()) {
+    std::string ext = fs::path(f.output).extension().string();
+    ao.subtype = (ext == ".ogg" || ext == ".oga") ? "VORBIS" : "PCM_16";
+  }
+
+  const SynthResult result = Synthesize(spec);
+  const nlohmann::json truth = TruthJson(spec, result);
+  WriteAudio(f.output, result.recording.channels, result.recording.sample_rate_hz, ao);
+  try {
+    WriteFileAtomically(truth_path, truth.dump(2) + "\n", wo);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(f.output, ec);  // never one file without the other
+    throw;
+  }
+
+  std::size_t impacts = 0;
+  for (const auto& d : result.truth) impacts += d.size();
+  if (f.json) {
+    nlohmann::json j = {{"audio", f.output},
+                        {"truth", truth_path},
+                        {"preset", spec.name},
+                        {"seed", spec.render.seed},
+                        {"sample_rate_hz", result.recording.sample_rate_hz},
+                        {"channels", result.recording.channels.size()},
+                        {"duration_s", result.recording.duration_s()},
+                        {"drops", result.truth.size()},
+                        {"impacts", impacts}};
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::printf(
+        "wrote %s (%s, %.0f Hz, %zu channel%s, %.2f s, %zu impact%s in %zu drop%s, seed %llu)\n",
+        f.output.c_str(), ao.subtype.c_str(), result.recording.sample_rate_hz,
+        result.recording.channels.size(), result.recording.channels.size() == 1 ? "" : "s",
+        result.recording.duration_s(), impacts, impacts == 1 ? "" : "s", result.truth.size(),
+        result.truth.size() == 1 ? "" : "s", static_cast<unsigned long long>(spec.render.seed));
+    std::printf("wrote %s (ground truth)\n", truth_path.c_str());
+  }
+}
+
+}  // namespace
+
+void RegisterSynth(CLI::App& app) {
+  auto flags = std::make_shared<SynthFlags>();
+  CLI::App* sub = app.add_subcommand(
+      "synth", "render a test recording of a bouncing ball plus its ground truth (OUT.truth.json)");
+  sub->add_option("-o,--output", flags->output,
+                  "output audio (.wav .flac .ogg .aiff); the truth goes to <stem>.truth.json");
+  sub->add_flag("--force", flags->force, "replace existing output files");
+  sub->add_option("--preset", flags->preset,
+                  "steel-copper (default), glass-glass, pingpong-wood, rubber-wood, phone-16k, "
+                  "two-drops");
+  sub->add_flag("--list-presets", flags->list_presets, "list the presets and exit");
+  AddSceneFlags(sub, &flags->scene, /*with_law=*/false);
+  sub->add_option("--rate", flags->rate_hz, "sample rate, Hz (8000..384000)");
+  sub->add_option("--seed", flags->seed, "random seed (same seed -> identical file)");
+  sub->add_option("--snr-db", flags->snr_db, "peak-to-noise-RMS ratio of channel 0, dB");
+  sub->add_flag("--no-noise", flags->no_noise, "no broadband noise");
+  sub->add_option("--noise", flags->noise, "noise colour: white or pink");
+  sub->add_option("--channels", flags->channels,
+                  "channel count; channel c has gain 1/(1+0.5c) and delay 0.25c ms");
+  sub->add_option("--plate", flags->plate, "plate modes: copper-dish, glass, wood-table, floor");
+  sub->add_option("--restitution", flags->restitution, "constant restitution e");
+  sub->add_option("--e0", flags->e0, "power-law restitution e = e0 - c v^p: e0");
+  sub->add_option("--e-slope", flags->e_slope, "power-law restitution: c");
+  sub->add_option("--e-power", flags->e_power, "power-law restitution: p");
+  sub->add_option("--contact-s", flags->contact_s, "contact duration, s (default: Hertz)");
+  sub->add_option("--min-interval", flags->min_interval_s,
+                  "stop when the next interval would be shorter, s");
+  sub->add_option("--hum", flags->hum_hz, "mains hum frequency (50 or 60 Hz; 0 = off)");
+  sub->add_option("--hum-db", flags->hum_db, "hum level relative to the peak, dB");
+  sub->add_option("--distractors", flags->distractors, "number of distractor clicks");
+  sub->add_option("--distractor-db", flags->distractor_db,
+                  "loudest distractor relative to the peak, dB");
+  sub->add_option("--clip", flags->clip_level, "hard-clip level (fraction of full scale)");
+  sub->add_option("--latency-ms", flags->latency_ms, "propagation latency, ms");
+  sub->add_option("--first-impact", flags->first_impact_s, "time of the first impact, s");
+  sub->add_option("--drops", flags->drops, "number of drops in the file");
+  sub->add_option("--drop-gap", flags->drop_gap_s,
+                  "silence between one drop's last impact and the next drop's first, s");
+  sub->add_option("--tail", flags->tail_s, "recording after the last impact, s");
+  sub->add_option("--duration", flags->duration_s, "total duration, s (default: auto)");
+  sub->add_option("--subtype", flags->subtype, "PCM_16 (default), PCM_24, PCM_32, FLOAT, VORBIS");
+  sub->add_flag("--json", flags->json, "print a JSON summary");
+  sub->callback([flags]() { Run(*flags); });
+}
+
+}  // namespace bouncecal::cli

@@ -36,22 +36,23 @@ struct Sequence {
 
 struct DetectOptions {
   ChannelSelection channel;
-  double hop_s = 0.0;              // STFT hop; 0 = auto (~0.33 ms)
-  bool refine = true;              // sub-sample change-point refinement
-  int min_sequence_impacts = 3;    // fewer than this: not a bounce sequence
-  double min_interval_s = 0.003;   // impacts closer than this are not resolvable
+  double hop_s = 0.0;             // STFT hop; 0 = auto (~0.33 ms)
+  bool refine = true;             // sub-sample change-point refinement
+  int min_sequence_impacts = 3;   // fewer than this: not a bounce sequence
+  double min_interval_s = 0.003;  // impacts closer than this are not resolvable
+  int lpc_order = 32;             // whitening predictor order (onsets.hpp)
   bool IsValid(std::string* error) const;
 };
 
 struct DetectionResult {
   AudioInfo audio;
-  int channel = -1;                     // channel used, -1 = mix
+  int channel = -1;  // channel used, -1 = mix
   std::vector<double> channel_score_db;
   std::vector<ClippingReport> clipping;
-  std::vector<Impact> candidates;       // every onset found, before tracking
-  std::vector<Sequence> sequences;      // in time order
-  int main_sequence = -1;               // index of the longest sequence
-  std::vector<std::string> warnings;    // human-readable notes (clipping, missed impacts...)
+  std::vector<Impact> candidates;     // every onset found, before tracking
+  std::vector<Sequence> sequences;    // in time order
+  int main_sequence = -1;             // index of the longest sequence
+  std::vector<std::string> warnings;  // human-readable notes (clipping, missed impacts...)
   const Sequence& main() const { return sequences.at(static_cast<size_t>(main_sequence)); }
 };
 

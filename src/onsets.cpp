@@ -1,0 +1,415 @@
+// Onset detection: whitening, relative spectral flux on an FFTW STFT, adaptive threshold, peak
+// picking, AIC sub-sample refinement. See include/bouncecal/onsets.hpp.
+#include "bouncecal/onsets.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <mutex>
+#include <numbers>
+#include <sstream>
+
+#include "bouncecal/error.hpp"
+
+namespace bouncecal {
+namespace {
+
+// Median of v (copied), robust and O(n).
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// Robust rms of x from the median absolute value (Gaussian: rms = median|x| / 0.6745),
+// on at most ~64k samples spread over x.
+double RobustRms(const std::vector<float>& x) {
+  if (x.empty()) return 0.0;
+  const std::size_t step = std::max<std::size_t>(1, x.size() / 65536);
+  std::vector<double> a;
+  a.reserve(x.size() / step + 1);
+  for (std::size_t i = 0; i < x.size(); i += step) a.push_back(std::fabs(x[i]));
+  return Median(std::move(a)) / 0.6745;
+}
+
+// FFTW's planner (plan creation and destruction) is not thread-safe; execution of distinct
+// plans is. This module-local mutex serialises the planner calls of all OnsetDetectors.
+std::mutex& PlannerMutex() {
+  static std::mutex m;
+  return m;
+}
+
+// Frames averaged into the novelty's reference spectrum (~3 ms at the default hop).
+constexpr std::size_t kRefFrames = 8;
+
+int NearestPowerOfTwo(double v) {
+  int p = 1;
+  while (p * 2 <= v * std::numbers::sqrt2) p *= 2;
+  return p;
+}
+
+}  // namespace
+
+bool OnsetOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(hop_s >= 0.0) || hop_s > 0.05)
+    return fail("OnsetOptions::hop_s = " + std::to_string(hop_s) + ": must be in [0, 0.05] s");
+  if (lpc_order < 0 || lpc_order > 256)
+    return fail("OnsetOptions::lpc_order = " + std::to_string(lpc_order) + ": must be 0..256");
+  if (!(threshold_mads > 0.0)) return fail("OnsetOptions::threshold_mads must be > 0");
+  if (!(min_novelty_db >= 0.0)) return fail("OnsetOptions::min_novelty_db must be >= 0");
+  if (!(median_window_s > 0.0)) return fail("OnsetOptions::median_window_s must be > 0");
+  if (!(min_gap_s >= 0.0)) return fail("OnsetOptions::min_gap_s must be >= 0");
+  if (!(aic_pre_s > 0.0) || !(aic_post_s > 0.0))
+    return fail("OnsetOptions::aic_pre_s and aic_post_s must be > 0");
+  if (!(sigma_floor_s >= 0.0)) return fail("OnsetOptions::sigma_floor_s must be >= 0");
+  return true;
+}
+
+std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order) {
+  assert(static_cast<int>(r.size()) > order && r[0] > 0.0);
+  std::vector<double> a(static_cast<std::size_t>(order) + 1, 0.0), prev;
+  a[0] = 1.0;
+  double err = r[0];
+  for (int i = 1; i <= order; ++i) {
+    double acc = r[static_cast<std::size_t>(i)];
+    for (int j = 1; j < i; ++j)
+      acc += a[static_cast<std::size_t>(j)] * r[static_cast<std::size_t>(i - j)];
+    const double k = -acc / err;  // reflection coefficient (Makhoul 1975, eq. 38c)
+    prev = a;
+    for (int j = 1; j < i; ++j)
+      a[static_cast<std::size_t>(j)] += k * prev[static_cast<std::size_t>(i - j)];
+    a[static_cast<std::size_t>(i)] = k;
+    err *= (1.0 - k * k);
+    if (!(err > r[0] * 1e-12)) break;  // numerically singular: keep the order reached
+  }
+  return a;
+}
+
+std::vector<float> Whiten(const std::vector<float>& x, int order, std::size_t max_fit_samples) {
+  const std::size_t n = x.size();
+  if (order <= 0 || n <= static_cast<std::size_t>(order) * 4) return x;
+  // Autocorrelation on blocks spread over the file (all of it when short). The lag products
+  // only run inside a block, so blocks are long compared with the order.
+  const std::size_t block = 4096;
+  const std::size_t nblocks_total = (n + block - 1) / block;
+  const std::size_t nblocks_fit = std::max<std::size_t>(1, max_fit_samples / block);
+  const std::size_t stride = std::max<std::size_t>(1, nblocks_total / nblocks_fit);
+  std::vector<double> r(static_cast<std::size_t>(order) + 1, 0.0);
+  for (std::size_t b = 0; b < nblocks_total; b += stride) {
+    const std::size_t s = b * block;
+    const std::size_t e = std::min(n, s + block);
+    for (int lag = 0; lag <= order; ++lag) {
+      double acc0 = 0, acc1 = 0;
+      std::size_t i = s + static_cast<std::size_t>(lag);
+      for (; i + 1 < e; i += 2) {
+        acc0 += static_cast<double>(x[i]) * x[i - static_cast<std::size_t>(lag)];
+        acc1 += static_cast<double>(x[i + 1]) * x[i + 1 - static_cast<std::size_t>(lag)];
+      }
+      if (i < e) acc0 += static_cast<double>(x[i]) * x[i - static_cast<std::size_t>(lag)];
+      r[static_cast<std::size_t>(lag)] += acc0 + acc1;
+    }
+  }
+  if (!(r[0] > 0.0)) return x;
+  // A little white-noise floor (-60 dB) keeps the predictor stable on pure tones
+  // (lag-window / "white noise correction", Makhoul 1975 sec. III-D).
+  r[0] *= 1.0 + 1e-6;
+  const std::vector<double> a = LevinsonDurbin(r, order);
+  std::vector<float> out(x);
+  for (std::size_t j = 1; j < a.size(); ++j) {
+    const float aj = static_cast<float>(a[j]);
+    float* o = out.data() + j;
+    const float* in = x.data();
+    const std::size_t m = n - j;
+    for (std::size_t i = 0; i < m; ++i) o[i] += aj * in[i];
+  }
+  return out;
+}
+
+AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end) {
+  AicPick pick;
+  end = std::min(end, x.size());
+  if (end <= begin + 16) return pick;
+  const std::size_t n = end - begin;
+  std::vector<double> s1(n + 1, 0.0), s2(n + 1, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = x[begin + i];
+    s1[i + 1] = s1[i] + v;
+    s2[i + 1] = s2[i] + v * v;
+  }
+  const double tiny = 1e-30 + 1e-12 * s2[n] / static_cast<double>(n);
+  const std::size_t kmin = 3, kmax = n - 4;  // each side keeps >= 3 samples
+  std::vector<double> aic(n, 0.0);
+  auto var = [&](std::size_t a, std::size_t b) {  // variance of x[a, b)
+    const double m = static_cast<double>(b - a);
+    const double mu = (s1[b] - s1[a]) / m;
+    return std::max((s2[b] - s2[a]) / m - mu * mu, 0.0) + tiny;
+  };
+  std::size_t best = kmin;
+  for (std::size_t k = kmin; k <= kmax; ++k) {
+    // Maeda (1985): AIC(k) = k log var(x[1..k]) + (N - k - 1) log var(x[k+1..N]).
+    aic[k] = static_cast<double>(k) * std::log(var(0, k + 1)) +
+             static_cast<double>(n - k - 1) * std::log(var(k + 1, n));
+    if (aic[k] < aic[best]) best = k;
+  }
+  double delta = 0.0, curv = 0.0;
+  if (best > kmin && best < kmax) {
+    curv = aic[best - 1] - 2.0 * aic[best] + aic[best + 1];
+    if (curv > 0.0) delta = std::clamp(0.5 * (aic[best - 1] - aic[best + 1]) / curv, -0.5, 0.5);
+  }
+  // The new regime starts between samples best and best+1.
+  pick.index = static_cast<double>(begin + best) + 0.5 + delta;
+  // AIC ~ -2 log L: the 1-sigma half width is where AIC rises by 1, i.e. sqrt(2 / curvature).
+  pick.sigma = curv > 0.0 ? std::sqrt(2.0 / curv) : 0.5;
+  pick.valid = true;
+  return pick;
+}
+
+struct OnsetDetector::Fft {
+  int n = 0;
+  double* in = nullptr;
+  fftw_complex* out = nullptr;
+  fftw_plan plan = nullptr;
+  std::vector<double> window;
+  explicit Fft(int size) : n(size) {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    in = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
+    out = static_cast<fftw_complex*>(
+        fftw_malloc(sizeof(fftw_complex) * static_cast<std::size_t>(n / 2 + 1)));
+    plan = fftw_plan_dft_r2c_1d(n, in, out, FFTW_ESTIMATE);
+    window.resize(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i)  // periodic Hann
+      window[static_cast<std::size_t>(i)] =
+          0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * i / static_cast<double>(n));
+  }
+  ~Fft() {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    fftw_destroy_plan(plan);
+    fftw_free(in);
+    fftw_free(out);
+  }
+  Fft(const Fft&) = delete;
+  Fft& operator=(const Fft&) = delete;
+};
+
+OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
+    : options_(options), rate_hz_(rate_hz) {
+  std::string why;
+  if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz))
+    throw Error(ErrorCode::kBadParameter,
+                "OnsetDetector: sample rate " + std::to_string(rate_hz) + " Hz must be > 0");
+  const double hop_target = options.hop_s > 0.0 ? options.hop_s * rate_hz : 0.00033 * rate_hz;
+  hop_ = std::max(1, NearestPowerOfTwo(hop_target));
+  window_ = std::max(16, 4 * hop_);
+  fft_ = std::make_unique<Fft>(window_);
+}
+
+OnsetDetector::~OnsetDetector() = default;
+
+OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
+  OnsetResult res;
+  res.hop_samples = hop_;
+  res.window_samples = window_;
+  res.whitened = Whiten(x, options_.lpc_order);
+  const std::vector<float>& w = res.whitened;
+  res.noise_rms = RobustRms(w);
+  const std::size_t n = w.size();
+  const std::size_t hop = static_cast<std::size_t>(hop_);
+  const std::size_t nw = static_cast<std::size_t>(window_);
+  if (n < nw + hop) return res;
+  const std::size_t frames = (n - nw) / hop + 1;
+  const std::size_t bins = nw / 2 + 1;
+
+  // 1. Relative spectral flux against the recent background: the reference spectrum R_t is
+  // the mean power of kRefFrames frames that end where frame t begins (no overlap with it,
+  // so a click cannot hide in its own reference):
+  //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
+  const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
+  const std::size_t ring = lag + kRefFrames;
+  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num(frames, 0.0), den(frames, 0.0);
+  Fft& f = *fft_;
+  const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
+  for (std::size_t t = 0; t < frames; ++t) {
+    const float* src = w.data() + t * hop;
+    for (std::size_t i = 0; i < nw; ++i) f.in[i] = src[i] * f.window[i];
+    fftw_execute(f.plan);
+    double* cur = spectra.data() + (t % ring) * bins;
+    double up = 0.0, ref_total = 0.0;
+    for (std::size_t k = 0; k < bins; ++k) {
+      const double p = f.out[k][0] * f.out[k][0] + f.out[k][1] * f.out[k][1];
+      const double r = ref[k] * inv_ref;
+      const double d = p - r;
+      if (d > 0.0) up += d;
+      ref_total += r;
+      cur[k] = p;
+    }
+    num[t] = up;
+    den[t] = t >= lag + kRefFrames ? ref_total : -1.0;  // -1: reference not yet full
+    // Slide the reference: frame t + 1 - lag enters, frame t + 1 - lag - kRefFrames leaves.
+    if (t + 1 >= lag) {
+      const double* in_f = spectra.data() + ((t + 1 - lag) % ring) * bins;
+      for (std::size_t k = 0; k < bins; ++k) ref[k] += in_f[k];
+      if (t + 1 >= lag + kRefFrames) {
+        const double* out_f = spectra.data() + ((t + 1 - lag - kRefFrames) % ring) * bins;
+        for (std::size_t k = 0; k < bins; ++k) ref[k] -= out_f[k];
+      }
+    }
+  }
+  // Floor of the denominator: the median reference power (the background), so silence and
+  // digital zeros do not turn tiny increases into large ratios.
+  std::vector<double> valid_den;
+  for (double v : den)
+    if (v >= 0.0) valid_den.push_back(v);
+  double floor_power = Median(valid_den);
+  if (!(floor_power > 0.0)) {
+    double mx = 0.0;
+    for (double v : valid_den) mx = std::max(mx, v);
+    floor_power = std::max(mx * 1e-6, 1e-30);
+  }
+  for (double& v : den)
+    if (v < 0.0) v = floor_power;
+  // A click stays above its reference for the ~lag frames that contain it, a noise peak for
+  // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
+  std::vector<double> raw_db(frames);
+  for (std::size_t t = 0; t < frames; ++t)
+    raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
+  res.novelty_db.assign(frames, 0.0);
+  for (std::size_t t = 1; t + 1 < frames; ++t)
+    res.novelty_db[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+
+  // 2. Adaptive threshold: running median + k * MAD, evaluated on blocks and interpolated.
+  const std::size_t win = std::max<std::size_t>(
+      16, static_cast<std::size_t>(options_.median_window_s * rate_hz_ / static_cast<double>(hop)));
+  const std::size_t blk = std::max<std::size_t>(1, win / 8);
+  const std::size_t nblk = (frames + blk - 1) / blk;
+  std::vector<double> blk_thr(nblk);
+  std::vector<double> buf;
+  for (std::size_t b = 0; b < nblk; ++b) {
+    const std::size_t c = b * blk + blk / 2;
+    const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
+    const std::size_t hi = std::min(frames, lo + win);
+    buf.assign(res.novelty_db.begin() + static_cast<std::ptrdiff_t>(lo),
+               res.novelty_db.begin() + static_cast<std::ptrdiff_t>(hi));
+    const double med = Median(buf);
+    for (double& v : buf) v = std::fabs(v - med);
+    const double mad = 1.4826 * Median(buf);
+    blk_thr[b] = med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
+  }
+  res.threshold_db.resize(frames);
+  for (std::size_t t = 0; t < frames; ++t) {
+    const double pos =
+        (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
+    const double cl = std::clamp(pos, 0.0, static_cast<double>(nblk - 1));
+    const std::size_t b0 = static_cast<std::size_t>(cl);
+    const std::size_t b1 = std::min(nblk - 1, b0 + 1);
+    const double fr = cl - static_cast<double>(b0);
+    res.threshold_db[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+  }
+
+  // 3. Peak picking: local maxima above threshold; within min_gap keep the stronger.
+  std::vector<std::size_t> peaks;
+  const std::size_t gap =
+      static_cast<std::size_t>(options_.min_gap_s * rate_hz_ / static_cast<double>(hop));
+  const auto& nov = res.novelty_db;
+  for (std::size_t t = 1; t + 1 < frames; ++t) {
+    if (nov[t] <= res.threshold_db[t] || nov[t] < nov[t - 1] || nov[t] <= nov[t + 1]) continue;
+    if (!peaks.empty() && t - peaks.back() <= gap) {
+      if (nov[t] > nov[peaks.back()]) peaks.back() = t;
+      continue;
+    }
+    peaks.push_back(t);
+  }
+
+  // 4. Refinement and per-impact measures.
+  const std::size_t pre =
+      std::max<std::size_t>(nw, static_cast<std::size_t>(options_.aic_pre_s * rate_hz_));
+  const std::size_t post =
+      std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
+  const double noise_var = std::max(res.noise_rms * res.noise_rms, 1e-30);
+  for (std::size_t t : peaks) {
+    // The click is most likely in the newest half of the window at the flux peak.
+    const std::size_t centre = t * hop + nw / 2 + nw / 4;
+    double onset = static_cast<double>(centre);
+    double sigma = static_cast<double>(hop) / std::sqrt(12.0);
+    if (options_.refine) {
+      const std::size_t b = centre > pre ? centre - pre : 0;
+      const AicPick p = PickAic(w, b, std::min(n, centre + post));
+      if (p.valid) {
+        onset = p.index;
+        sigma = p.sigma;
+      }
+    }
+    Impact imp;
+    imp.time_s = onset / rate_hz_;
+    imp.sigma_s = std::hypot(sigma / rate_hz_, options_.sigma_floor_s);
+    const std::size_t i0 = static_cast<std::size_t>(std::max(0.0, std::floor(onset)));
+    const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
+    double amp = 0.0;
+    for (std::size_t i = i0; i < pk_end; ++i)
+      amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
+    imp.amplitude = amp;
+    // SNR: whitened power just after the onset over the power before it.
+    const std::size_t len_post =
+        std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
+    double e_post = 0.0;
+    std::size_t c_post = 0;
+    for (std::size_t i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
+      e_post += static_cast<double>(w[i]) * w[i];
+    const std::size_t pre_end = i0 > 2 ? i0 - 2 : 0;
+    const std::size_t pre_len = static_cast<std::size_t>(0.01 * rate_hz_);
+    const std::size_t pre_begin = pre_end > pre_len ? pre_end - pre_len : 0;
+    double e_pre = 0.0;
+    for (std::size_t i = pre_begin; i < pre_end; ++i) e_pre += static_cast<double>(w[i]) * w[i];
+    const double p_post = c_post ? e_post / static_cast<double>(c_post) : 0.0;
+    const double p_pre =
+        pre_end > pre_begin ? e_pre / static_cast<double>(pre_end - pre_begin) : noise_var;
+    imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * noise_var) + 1e-30));
+    res.onsets.push_back(imp);
+  }
+
+  // 5. Template score: normalised cross-correlation of each onset's whitened waveform with
+  // the strongest onset's, best lag within +-0.3 ms.
+  if (!res.onsets.empty()) {
+    std::size_t ref = 0;
+    for (std::size_t i = 1; i < res.onsets.size(); ++i)
+      if (res.onsets[i].snr_db > res.onsets[ref].snr_db) ref = i;
+    const long lead = static_cast<long>(0.00025 * rate_hz_) + 1;
+    const long len = static_cast<long>(0.002 * rate_hz_) + 4;
+    const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+    auto seg_start = [&](const Impact& im) {
+      return static_cast<long>(im.time_s * rate_hz_) - lead;
+    };
+    const long rs = seg_start(res.onsets[ref]);
+    auto sample = [&](long i) {
+      return (i >= 0 && i < static_cast<long>(n))
+                 ? static_cast<double>(w[static_cast<std::size_t>(i)])
+                 : 0.0;
+    };
+    double rr = 0.0;
+    for (long i = 0; i < len; ++i) rr += sample(rs + i) * sample(rs + i);
+    for (Impact& im : res.onsets) {
+      const long cs = seg_start(im);
+      double best = 0.0;
+      for (long lag = -maxlag; lag <= maxlag; ++lag) {
+        double xy = 0.0, yy = 0.0;
+        for (long i = 0; i < len; ++i) {
+          const double y = sample(cs + lag + i);
+          xy += sample(rs + i) * y;
+          yy += y * y;
+        }
+        if (yy > 0.0 && rr > 0.0) best = std::max(best, xy / std::sqrt(rr * yy));
+      }
+      im.score = std::clamp(best, 0.0, 1.0);
+    }
+  }
+  return res;
+}
+
+}  // namespace bouncecal

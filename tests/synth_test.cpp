@@ -1,0 +1,574 @@
+// Tests of the test-recording renderer (synth.hpp): truth against closed-form flights, the
+// rendered sound against a numerical convolution, timing/causality, determinism, SNR, clipping,
+// channels, presets, the truth JSON and the `bouncecal synth` command.
+#include "bouncecal/synth.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bouncecal/audio.hpp"
+#include "bouncecal/error.hpp"
+
+namespace bouncecal {
+namespace {
+namespace fs = std::filesystem;
+
+constexpr double kG = 9.8;
+
+Scene SteelScene(double height_m = 0.2) {
+  Scene s;
+  s.ball.material = "steel";
+  s.surface.material = "copper";
+  s.drop.height_m = height_m;
+  s.environment.g_m_s2 = kG;
+  return s;
+}
+
+// ---- truth -----------------------------------------------------------------------------------
+
+TEST(Truth, VacuumTimesAreTheClosedForm) {
+  Scene s = SteelScene(0.2);
+  s.drop.first_impact_time_s = 0.75;
+  const double e = 0.8;
+  const auto imp = ImpactsFromRestitution(s, RestitutionModel::Constant(e));
+  ASSERT_GT(imp.size(), 20u);
+  double v = std::sqrt(2 * kG * 0.2);  // release from rest, silent
+  double t = 0.75;
+  for (std::size_t k = 0; k < imp.size(); ++k) {
+    EXPECT_NEAR(imp[k].time_s, t, 1e-12 * (1 + t)) << k;
+    EXPECT_NEAR(imp[k].v_in_m_s, v, 1e-12) << k;
+    EXPECT_NEAR(imp[k].v_out_m_s, e * v, 1e-12) << k;
+    EXPECT_NEAR(imp[k].e(), e, 1e-12);
+    t += 2 * e * v / kG;  // vacuum: interval = 2 v_out / g
+    v *= e;
+  }
+  // Stopped exactly where the next interval would fall below the threshold (2 ms default).
+  const double last_interval = 2 * imp.back().v_out_m_s / kG;
+  EXPECT_LT(last_interval, TruthOptions{}.min_interval_s);
+  EXPECT_GE(imp[imp.size() - 1].time_s - imp[imp.size() - 2].time_s, TruthOptions{}.min_interval_s);
+}
+
+TEST(Truth, PowerLawRestitutionUsesTheArrivalSpeed) {
+  const auto model = RestitutionModel::PowerLaw(0.95, 0.02, 0.5);
+  EXPECT_NEAR(model(4.0), 0.95 - 0.02 * 2.0, 1e-15);
+  const auto imp = ImpactsFromRestitution(SteelScene(0.5), model);
+  ASSERT_GT(imp.size(), 10u);
+  for (std::size_t k = 0; k < imp.size(); ++k) {
+    EXPECT_NEAR(imp[k].e(), 0.95 - 0.02 * std::sqrt(imp[k].v_in_m_s), 1e-12);
+    if (k > 0) {
+      EXPECT_NEAR(imp[k].v_in_m_s, imp[k - 1].v_out_m_s, 1e-12);  // no drag
+    }
+    if (k > 1) {  // e rises as the ball slows down: intervals shrink more slowly
+      const double r1 =
+          (imp[k].time_s - imp[k - 1].time_s) / (imp[k - 1].time_s - imp[k - 2].time_s);
+      EXPECT_NEAR(r1, imp[k - 1].e(), 1e-9);
+    }
+  }
+}
+
+TEST(Truth, QuadraticDragMatchesTheExactFlightFormulas) {
+  // Ping-pong ball: drag matters (PHYSICS.md §2 closed forms, evaluated here independently).
+  Scene s;
+  s.ball.diameter_m = 0.04;
+  s.ball.mass_kg = 0.0027;
+  s.ball.density_kg_m3.reset();
+  s.ball.material = "pingpong";
+  s.surface.material = "wood";
+  s.drop.height_m = 0.3;
+  s.effects.drag = DragModel::kQuadratic;
+  TruthOptions o;
+  o.contact_s = 0.0;
+  const double e = 0.9;
+  const auto imp = ImpactsFromRestitution(s, RestitutionModel::Constant(e), o);
+  ASSERT_GT(imp.size(), 10u);
+  const double rho_a = s.environment.air_density_kg_m3, cd = s.environment.drag_coefficient;
+  const double area = M_PI * 0.02 * 0.02;
+  const double vt = std::sqrt(2 * 0.0027 * kG / (rho_a * cd * area));
+  // Fall from 0.3 m.
+  const double v_first = vt * std::sqrt(1 - std::exp(-2 * kG * 0.3 / (vt * vt)));
+  EXPECT_NEAR(imp[0].v_in_m_s, v_first, 1e-9);
+  EXPECT_LT(v_first, std::sqrt(2 * kG * 0.3) * 0.99);  // drag is visible
+  for (std::size_t k = 0; k + 1 < imp.size(); ++k) {
+    const double v0 = imp[k].v_out_m_s;
+    const double t_up = vt / kG * std::atan(v0 / vt);
+    const double h = vt * vt / (2 * kG) * std::log(1 + v0 * v0 / (vt * vt));
+    const double t_down = vt / kG * std::acosh(std::exp(kG * h / (vt * vt)));
+    const double v_arr = vt * std::sqrt(1 - std::exp(-2 * kG * h / (vt * vt)));
+    EXPECT_NEAR(imp[k + 1].time_s - imp[k].time_s, t_up + t_down, 1e-10) << k;
+    EXPECT_NEAR(imp[k + 1].v_in_m_s, v_arr, 1e-9) << k;
+    EXPECT_LT(imp[k + 1].v_in_m_s, v0);  // drag takes energy in flight
+  }
+}
+
+TEST(Truth, ContactDurationIsAddedOnlyWhenTheSceneAsks) {
+  TruthOptions o;
+  o.contact_s = 1.4e-3;
+  Scene off = SteelScene(0.3);
+  Scene on = off;
+  on.effects.contact_duration = true;
+  const auto a = ImpactsFromRestitution(off, RestitutionModel::Constant(0.85), o);
+  const auto b = ImpactsFromRestitution(on, RestitutionModel::Constant(0.85), o);
+  ASSERT_GT(a.size(), 5u);
+  for (std::size_t k = 0; k + 1 < 5; ++k) {
+    const double flight = 2 * a[k].v_out_m_s / kG;
+    EXPECT_NEAR(a[k + 1].time_s - a[k].time_s, flight, 1e-12);
+    EXPECT_NEAR(b[k + 1].time_s - b[k].time_s, flight + 1.4e-3, 1e-12);
+    EXPECT_EQ(a[k].contact_s, 1.4e-3);  // reported either way: it shapes the click
+  }
+}
+
+TEST(Truth, HertzContactDuration) {
+  const Scene s = SteelScene();
+  // Independent evaluation: steel (E 200 GPa, nu 0.29) on copper (120 GPa, 0.34), 1 cm ball.
+  const double m = 7800.0 * M_PI / 6.0 * 1e-6;
+  const double e_star = 1.0 / ((1 - 0.29 * 0.29) / 2.0e11 + (1 - 0.34 * 0.34) / 1.2e11);
+  const double tau = 2.87 * std::pow(m * m / (0.005 * e_star * e_star * 1.0), 0.2);
+  EXPECT_NEAR(HertzContactDuration(s, 1.0), tau, 1e-9 * tau);
+  EXPECT_GT(tau, 20e-6);  // tens of microseconds for steel (PHYSICS.md §2)
+  EXPECT_LT(tau, 60e-6);
+  EXPECT_NEAR(HertzContactDuration(s, 2.0) / HertzContactDuration(s, 1.0), std::pow(2.0, -0.2),
+              1e-12);
+  // The truth uses it per impact when no duration is given.
+  const auto imp = ImpactsFromRestitution(s, RestitutionModel::Constant(0.9));
+  EXPECT_NEAR(imp[3].contact_s, HertzContactDuration(s, imp[3].v_in_m_s), 1e-15);
+}
+
+TEST(Truth, StopsAtRestSpeedAndRejectsBadInput) {
+  TruthOptions o;
+  o.rest_speed_m_s = 0.5;
+  const auto imp = ImpactsFromRestitution(SteelScene(), RestitutionModel::Constant(0.7), o);
+  ASSERT_FALSE(imp.empty());
+  EXPECT_LT(imp.back().v_out_m_s, 0.5);
+  for (std::size_t k = 0; k + 1 < imp.size(); ++k) EXPECT_GE(imp[k].v_out_m_s, 0.5);
+
+  auto code = [](auto&& f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return e.code();
+    }
+    return ErrorCode::kOk;
+  };
+  EXPECT_EQ(code([] { ImpactsFromRestitution(SteelScene(), RestitutionModel::Constant(1.2)); }),
+            ErrorCode::kBadParameter);
+  EXPECT_EQ(code([] {
+              ImpactsFromRestitution(SteelScene(), RestitutionModel::Function(
+                                                       [](double v) { return 1.0 + v; }, "bad"));
+            }),
+            ErrorCode::kBadParameter);
+  EXPECT_EQ(code([] { ImpactsFromRestitution(SteelScene(-1.0), RestitutionModel::Constant(0.9)); }),
+            ErrorCode::kBadScene);
+  TruthOptions bad;
+  bad.min_interval_s = 0.0;
+  EXPECT_EQ(
+      code([&] { ImpactsFromRestitution(SteelScene(), RestitutionModel::Constant(0.9), bad); }),
+      ErrorCode::kBadParameter);
+}
+
+// ---- rendering -------------------------------------------------------------------------------
+
+RenderOptions Quiet(double rate_hz) {
+  RenderOptions o;
+  o.sample_rate_hz = rate_hz;
+  o.snr_db.reset();
+  o.hum_hz = 0;
+  o.distractors = 0;
+  o.tail_s = 0.3;
+  return o;
+}
+
+TruthImpact Imp(double t, double v, double contact_s) {
+  return TruthImpact{t, v, 0.8 * v, contact_s};
+}
+
+// The modal response to the half-sine pulse is computed in closed form; check it against a
+// brute-force convolution integral (midpoint rule, 20000 steps over the pulse).
+TEST(Render, ModeResponseMatchesNumericalConvolution) {
+  const double rate = 48000, tau = 3.1e-4, onset = 0.0100123;
+  const Mode mode{1730.0, 0.02, 1.0};
+  RenderOptions o = Quiet(rate);
+  o.plate_modes = {mode};
+  o.click_gain = 0.0;
+  o.duration_s = 0.05;
+  const Recording r = RenderRecording(std::vector<TruthImpact>{Imp(onset, 1.0, tau)}, o);
+  const auto& x = r.channels[0];
+  std::vector<double> ref(x.size(), 0.0);
+  const int steps = 20000;
+  const double w = 2 * M_PI * mode.freq_hz;
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    const double t = static_cast<double>(n) / rate - onset;
+    if (t <= 0) continue;
+    const double u = std::min(t, tau);
+    double acc = 0;
+    for (int j = 0; j < steps; ++j) {
+      const double s = (j + 0.5) * u / steps;
+      acc += M_PI / (2 * tau) * std::sin(M_PI * s / tau) * std::exp(-(t - s) / mode.decay_s) *
+             std::sin(w * (t - s));
+    }
+    ref[n] = acc * u / steps;
+  }
+  double ref_peak = 0;
+  for (double v : ref) ref_peak = std::max(ref_peak, std::fabs(v));
+  const double scale = o.peak_level / ref_peak;  // the renderer normalises its peak
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    ASSERT_NEAR(x[n], ref[n] * scale, 2e-6) << "sample " << n;
+  }
+}
+
+std::size_t FirstNonZero(const std::vector<float>& x) {
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    if (x[n] != 0.0f) return n;
+  }
+  return x.size();
+}
+
+TEST(Render, SoundStartsExactlyAtTheOnsetInEveryChannel) {
+  for (double rate : {8000.0, 44100.0, 48000.0, 384000.0}) {
+    RenderOptions o = Quiet(rate);
+    o.latency_s = 7.3e-4;
+    o.channels = {ChannelSpec{1.0, 0.0}, ChannelSpec{0.5, 3.1e-4}};
+    const double t = 0.1234567;
+    const Recording r = RenderRecording(std::vector<TruthImpact>{Imp(t, 2.0, 3e-5)}, o);
+    ASSERT_EQ(r.channels.size(), 2u);
+    for (std::size_t c = 0; c < 2; ++c) {
+      const double onset = t + o.latency_s + o.channels[c].delay_s;
+      // Causal: nothing before the onset, sound from the first sample after it.
+      EXPECT_EQ(FirstNonZero(r.channels[c]), static_cast<std::size_t>(std::floor(onset * rate)) + 1)
+          << rate << " Hz, channel " << c;
+    }
+    EXPECT_NEAR(r.drops[0][0].onset_s, t + o.latency_s, 1e-15);
+  }
+}
+
+TEST(Render, TruthIsIndependentOfTheSampleRate) {
+  std::vector<std::vector<TruthImpact>> truths;
+  for (double rate : {16000.0, 48000.0, 96000.0}) {
+    SynthSpec s = SynthPreset("steel-copper");
+    s.render.sample_rate_hz = rate;
+    const SynthResult r = Synthesize(s);
+    EXPECT_EQ(r.recording.sample_rate_hz, rate);
+    EXPECT_NEAR(r.recording.duration_s(),
+                r.truth[0].back().time_s + s.render.latency_s + s.render.tail_s, 1.0 / rate);
+    truths.push_back(r.truth[0]);
+  }
+  for (std::size_t i = 1; i < truths.size(); ++i) {
+    ASSERT_EQ(truths[i].size(), truths[0].size());
+    for (std::size_t k = 0; k < truths[0].size(); ++k) {
+      EXPECT_EQ(truths[i][k].time_s, truths[0][k].time_s);
+      EXPECT_EQ(truths[i][k].v_in_m_s, truths[0][k].v_in_m_s);
+    }
+  }
+}
+
+TEST(Render, SameSeedIsBitIdenticalOtherSeedDiffers) {
+  SynthSpec s = SynthPreset("phone-16k");  // noise, hum, distractors, clipping: all random parts
+  const SynthResult a = Synthesize(s);
+  const SynthResult b = Synthesize(s);
+  ASSERT_EQ(a.recording.channels, b.recording.channels);
+  ASSERT_EQ(a.recording.distractors.size(), 6u);
+  s.render.seed += 1;
+  const SynthResult c = Synthesize(s);
+  ASSERT_EQ(c.recording.channels[0].size(), a.recording.channels[0].size());
+  std::size_t differ = 0;
+  for (std::size_t n = 0; n < a.recording.channels[0].size(); ++n) {
+    differ += a.recording.channels[0][n] != c.recording.channels[0][n];
+  }
+  EXPECT_GT(differ, a.recording.channels[0].size() / 2);
+  EXPECT_NE(a.recording.distractors[0].time_s, c.recording.distractors[0].time_s);
+  // The truth is physics, not chance.
+  EXPECT_EQ(a.truth[0].size(), c.truth[0].size());
+  EXPECT_EQ(a.truth[0].back().time_s, c.truth[0].back().time_s);
+}
+
+// SNR measured on the rendered samples: peak of the file over the RMS of the lead-in (noise
+// only, before the first onset).
+double MeasuredSnrDb(const std::vector<float>& x, double rate, double first_onset_s) {
+  const auto n_lead = static_cast<std::size_t>((first_onset_s - 0.001) * rate);
+  double s2 = 0, peak = 0;
+  for (std::size_t n = 0; n < n_lead; ++n) s2 += double(x[n]) * x[n];
+  for (float v : x) peak = std::max(peak, std::fabs(double(v)));
+  return 20 * std::log10(peak / std::sqrt(s2 / static_cast<double>(n_lead)));
+}
+
+TEST(Render, SnrOfTheFileMatchesTheRequest) {
+  // (Below ~25 dB the noise riding on the peak sample biases this simple peak measurement
+  // upwards by > 0.5 dB; the noise RMS itself is exact at any SNR, checked first.)
+  for (NoiseColor color : {NoiseColor::kWhite, NoiseColor::kPink}) {
+    for (double snr : {10.0, 30.0, 40.0, 50.0}) {
+      SynthSpec s = SynthPreset("steel-copper");
+      s.render.hum_hz = 0;
+      s.render.snr_db = snr;
+      s.render.noise_color = color;
+      s.render.channels = {ChannelSpec{1.0, 0.0}, ChannelSpec{0.7, 1e-4}};
+      const SynthResult r = Synthesize(s);
+      const double onset = r.recording.drops[0][0].onset_s;
+      const auto& x0 = r.recording.channels[0];
+      const auto n_lead = static_cast<std::size_t>((onset - 0.001) * 48000);
+      double s2 = 0;
+      for (std::size_t n = 0; n < n_lead; ++n) s2 += double(x0[n]) * x0[n];
+      const double expected_rms = 0.5 * std::pow(10, -snr / 20);
+      EXPECT_NEAR(r.recording.noise_rms, expected_rms, 1e-12);
+      EXPECT_NEAR(std::sqrt(s2 / double(n_lead)) / expected_rms, 1.0, 0.03) << snr;
+      if (snr < 25) continue;
+      EXPECT_NEAR(MeasuredSnrDb(x0, 48000, onset), snr, 1.0)
+          << "white=" << (color == NoiseColor::kWhite);
+      // Same noise RMS in every channel: gain 0.7 gives 3.1 dB less SNR.
+      EXPECT_NEAR(MeasuredSnrDb(r.recording.channels[1], 48000, onset), snr + 20 * std::log10(0.7),
+                  1.0);
+      // Per-impact SNRs in the truth are consistent with the global one.
+      EXPECT_LE(r.recording.drops[0][0].snr_db, snr + 1e-9);
+      EXPECT_GT(r.recording.drops[0][0].snr_db, snr - 3.0);
+    }
+  }
+}
+
+TEST(Render, LaterImpactsAreQuieterWithTheAmplitudeExponent) {
+  SynthSpec s = SynthPreset("steel-copper");
+  const SynthResult r = Synthesize(s);
+  const auto& d = r.recording.drops[0];
+  ASSERT_GT(d.size(), 40u);
+  EXPECT_GT(d[0].amplitude, 10 * d[40].amplitude);
+  // amplitude ~ v_in^1 for short pulses: ratio within 10 % of the speed ratio.
+  EXPECT_NEAR(d[20].amplitude / d[0].amplitude, d[20].truth.v_in_m_s / d[0].truth.v_in_m_s,
+              0.1 * d[20].truth.v_in_m_s / d[0].truth.v_in_m_s);
+}
+
+TEST(Render, ClippingWhenAskedAndOnlyThen) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("bouncecal_synth_clip_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  for (bool clip : {false, true}) {
+    SynthSpec s = SynthPreset("phone-16k");
+    if (!clip) s.render.clip_level.reset();
+    const SynthResult r = Synthesize(s);
+    double peak = 0;
+    for (float v : r.recording.channels[0]) peak = std::max(peak, std::fabs(double(v)));
+    if (clip) {
+      EXPECT_NEAR(peak, 0.25, 1e-6);
+      EXPECT_TRUE(r.recording.drops[0][0].clipped);
+    } else {
+      EXPECT_GT(peak, 0.3);
+      EXPECT_FALSE(r.recording.drops[0][0].clipped);
+    }
+    const std::string path = (dir / (clip ? "c.wav" : "n.wav")).string();
+    WriteAudio(path, r.recording.channels, r.recording.sample_rate_hz, AudioWriteOptions{"FLOAT"});
+    const Audio a = ReadAudio(path);
+    EXPECT_EQ(a.clipping[0].clipped(), clip);
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Render, DistractorsKeepAwayFromImpactsAndAreHeard) {
+  SynthSpec s = SynthPreset("steel-copper");
+  s.render.snr_db.reset();
+  s.render.hum_hz = 0;
+  s.render.distractors = 5;
+  s.render.distractor_db = -20;
+  const SynthResult with = Synthesize(s);
+  s.render.distractors = 0;
+  const SynthResult without = Synthesize(s);
+  ASSERT_EQ(with.recording.distractors.size(), 5u);
+  for (const Distractor& d : with.recording.distractors) {
+    for (const auto& i : with.recording.drops[0]) EXPECT_GT(std::fabs(i.onset_s - d.time_s), 0.010);
+    EXPECT_LE(d.amplitude, 0.5 * std::pow(10, -20.0 / 20) + 1e-12);
+    // The difference between the two renderings is there, right after the distractor time.
+    const auto n = static_cast<std::size_t>(d.time_s * 48000);
+    double diff = 0;
+    for (std::size_t j = n; j < n + 480 && j < with.recording.channels[0].size(); ++j) {
+      diff = std::max(diff, std::fabs(double(with.recording.channels[0][j]) -
+                                      without.recording.channels[0][j]));
+    }
+    EXPECT_GT(diff, 0.3 * d.amplitude);
+    EXPECT_LT(diff, 1.01 * d.amplitude + 1e-6);
+  }
+}
+
+TEST(Render, RejectsBadOptionsAndImpacts) {
+  auto code = [](const RenderOptions& o, std::vector<TruthImpact> imp) {
+    try {
+      RenderRecording(imp, o);
+    } catch (const Error& e) {
+      return e.code();
+    }
+    return ErrorCode::kOk;
+  };
+  const std::vector<TruthImpact> ok{Imp(0.1, 1.0, 3e-5)};
+  RenderOptions o = Quiet(48000);
+  EXPECT_EQ(code(o, ok), ErrorCode::kOk);
+  for (auto mutate : std::vector<std::function<void(RenderOptions&)>>{
+           [](RenderOptions& r) { r.sample_rate_hz = 4000; },
+           [](RenderOptions& r) { r.sample_rate_hz = 44100.5; },
+           [](RenderOptions& r) { r.channels.clear(); },
+           [](RenderOptions& r) { r.channels[0].gain = 0; },
+           [](RenderOptions& r) { r.snr_db = std::nan(""); },
+           [](RenderOptions& r) { r.clip_level = 0.0; },
+           [](RenderOptions& r) {
+             r.plate_modes = {{30000, 0.1, 1}}, r.click_gain = 0;
+           },
+           [](RenderOptions& r) { r.duration_s = 0.05; },  // ends before the impact
+       }) {
+    RenderOptions bad = Quiet(48000);
+    mutate(bad);
+    EXPECT_EQ(code(bad, ok), ErrorCode::kBadParameter);
+  }
+  EXPECT_EQ(code(o, {Imp(-0.1, 1.0, 0)}), ErrorCode::kBadParameter);
+  EXPECT_EQ(code(o, {Imp(0.1, std::nan(""), 0)}), ErrorCode::kBadParameter);
+  EXPECT_EQ(code(o, {Imp(0.1, 1.0, -1e-3)}), ErrorCode::kBadParameter);
+}
+
+// ---- presets and truth JSON -----------------------------------------------------------------
+
+TEST(Presets, AllRenderAndDescribeWhatTheySay) {
+  for (const std::string& name : SynthPresetNames()) {
+    const SynthSpec s = SynthPreset(name);
+    std::string err;
+    ASSERT_TRUE(s.IsValid(&err)) << name << ": " << err;
+    const SynthResult r = Synthesize(s);
+    ASSERT_EQ(r.truth.size(), s.drops.size()) << name;
+    for (const auto& d : r.truth) {
+      ASSERT_GT(d.size(), 10u) << name;
+      for (std::size_t k = 2; k < d.size(); ++k) {  // intervals shrink
+        EXPECT_LT(d[k].time_s - d[k - 1].time_s, d[k - 1].time_s - d[k - 2].time_s) << name;
+      }
+    }
+  }
+  EXPECT_EQ(SynthPreset("steel-copper").render.sample_rate_hz, 48000);
+  EXPECT_EQ(SynthPreset("glass-glass").render.sample_rate_hz, 96000);
+  EXPECT_EQ(SynthPreset("phone-16k").render.sample_rate_hz, 16000);
+  EXPECT_EQ(SynthPreset("pingpong-wood").scene.effects.drag, DragModel::kQuadratic);
+  EXPECT_EQ(SynthPreset("rubber-wood").truth.contact_s.value_or(0), 1.4e-3);
+  EXPECT_EQ(SynthPreset("two-drops").drops.size(), 2u);
+  const double e_steel = SynthPreset("steel-copper").restitution(std::sqrt(2 * kG * 0.2));
+  EXPECT_NEAR(e_steel, 0.92, 0.005);
+  try {
+    SynthPreset("tuba");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kBadParameter);
+  }
+}
+
+TEST(Presets, TwoDropsAreSeparateSequencesInOneFile) {
+  const SynthResult r = Synthesize(SynthPreset("two-drops"));
+  ASSERT_EQ(r.truth.size(), 2u);
+  EXPECT_DOUBLE_EQ(r.truth[1].front().time_s, 6.5);
+  EXPECT_LT(r.truth[0].back().time_s, r.truth[1].front().time_s - 0.5);
+  EXPECT_LT(r.truth[1].front().v_in_m_s, r.truth[0].front().v_in_m_s);  // 0.12 m vs 0.2 m
+  EXPECT_EQ(r.recording.channels.size(), 2u);
+}
+
+TEST(TruthJson, HasTheContractKeys) {
+  const SynthSpec s = SynthPreset("two-drops");
+  const SynthResult r = Synthesize(s);
+  const nlohmann::json j = TruthJson(s, r);
+  EXPECT_EQ(j["generator"].get<std::string>().rfind("bouncecal synth ", 0), 0u);
+  EXPECT_EQ(j["sample_rate_hz"].get<double>(), 48000.0);
+  EXPECT_EQ(j["channels"].get<int>(), 2);
+  EXPECT_EQ(j["seed"].get<std::uint64_t>(), s.render.seed);
+  ASSERT_EQ(j["drops"].size(), 2u);
+  const auto& i0 = j["drops"][1]["impacts"][3];
+  const auto& t0 = r.recording.drops[1][3];
+  EXPECT_EQ(i0["time_s"].get<double>(), t0.truth.time_s);
+  EXPECT_EQ(i0["onset_s"].get<double>(), t0.onset_s);
+  EXPECT_DOUBLE_EQ(i0["e"].get<double>(), t0.truth.v_out_m_s / t0.truth.v_in_m_s);
+  for (const char* key : {"v_in_m_s", "v_out_m_s", "contact_s", "amplitude", "snr_db", "clipped"}) {
+    EXPECT_TRUE(i0.contains(key)) << key;
+  }
+  EXPECT_EQ(j["distractors"].size(), 4u);
+  EXPECT_EQ(j["scene"]["ball"]["diameter_m"].get<double>(), 0.01);
+  EXPECT_EQ(j["scene"]["drop"]["height_m"].get<double>(), 0.2);
+  EXPECT_EQ(j["restitution"]["model"], "power-law");
+  // The embedded scene reads back to the same scene.
+  const Scene back = ParseScene(j["scene_toml"].get<std::string>(), "truth");
+  EXPECT_EQ(back.ball, s.scene.ball);
+  EXPECT_EQ(back.drop.height_m, s.scene.drop.height_m);
+}
+
+// ---- the command -----------------------------------------------------------------------------
+
+class SynthCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("bouncecal_synth_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  int Run(const std::string& args) {
+    const std::string cmd = std::string(BOUNCECAL_BINARY) + " synth " + args + " >" +
+                            (dir_ / "stdout").string() + " 2>" + (dir_ / "stderr").string();
+    const int rc = std::system(cmd.c_str());
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  }
+  std::string Slurp(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+  fs::path dir_;
+};
+
+TEST_F(SynthCli, WritesAudioAndTruthAndRefusesToOverwrite) {
+  const std::string out = (dir_ / "d.wav").string();
+  ASSERT_EQ(Run("--preset rubber-wood --seed 9 --rate 22050 -o " + out), 0)
+      << Slurp(dir_ / "stderr");
+  ASSERT_TRUE(fs::exists(dir_ / "d.truth.json"));
+  const Audio a = ReadAudio(out);
+  EXPECT_EQ(a.info.sample_rate_hz, 22050);
+  const auto truth = nlohmann::json::parse(Slurp(dir_ / "d.truth.json"));
+  EXPECT_EQ(truth["seed"].get<int>(), 9);
+  EXPECT_EQ(truth["sample_rate_hz"].get<double>(), 22050);
+  EXPECT_NEAR(truth["duration_s"].get<double>(), a.info.duration_s(), 1e-9);
+  const std::string before = Slurp(out);
+  // Exists: refused with the output code, file untouched.
+  EXPECT_EQ(Run("--preset rubber-wood --seed 10 --rate 22050 -o " + out), 11);
+  EXPECT_NE(Slurp(dir_ / "stderr").find("exists"), std::string::npos);
+  EXPECT_EQ(Slurp(out), before);
+  // --force with the same seed: byte-identical file.
+  EXPECT_EQ(Run("--preset rubber-wood --seed 9 --rate 22050 --force -o " + out), 0);
+  EXPECT_EQ(Slurp(out), before);
+}
+
+TEST_F(SynthCli, SceneFlagsOverrideThePresetScene) {
+  const std::string out = (dir_ / "h.flac").string();
+  ASSERT_EQ(Run("--preset steel-copper --height 0.1 --restitution 0.8 --no-noise --channels 2 "
+                "--json -o " +
+                out),
+            0)
+      << Slurp(dir_ / "stderr");
+  const auto summary = nlohmann::json::parse(Slurp(dir_ / "stdout"));
+  EXPECT_EQ(summary["channels"].get<int>(), 2);
+  const auto truth = nlohmann::json::parse(Slurp(dir_ / "h.truth.json"));
+  const auto& imps = truth["drops"][0]["impacts"];
+  EXPECT_NEAR(imps[0]["v_in_m_s"].get<double>(), std::sqrt(2 * kG * 0.1), 1e-12);
+  EXPECT_NEAR(imps[1]["e"].get<double>(), 0.8, 1e-12);
+  EXPECT_EQ(truth["scene"]["ball"]["material"], "steel");  // the rest of the preset kept
+}
+
+TEST_F(SynthCli, BadArgumentsFailCleanly) {
+  const std::string out = (dir_ / "x.wav").string();
+  EXPECT_EQ(Run("--preset tuba -o " + out), 9);
+  EXPECT_EQ(Run("--rate 1000 -o " + out), 9);
+  EXPECT_EQ(Run("--height -2 -o " + out), 9);
+  EXPECT_EQ(Run("-o " + (dir_ / "x.mp3").string()), 11);
+  EXPECT_EQ(Run("-o " + (dir_ / "missing" / "x.wav").string()), 11);
+  EXPECT_EQ(Run("--scene " + (dir_ / "none.toml").string() + " -o " + out), 3);
+  EXPECT_EQ(Run(""), 2);
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(dir_ / "x.truth.json"));
+}
+
+}  // namespace
+}  // namespace bouncecal

@@ -1,0 +1,450 @@
+// One contact, integrated with Boost.Odeint dopri5 and located events. See
+// include/bouncecal/contact_integrator.hpp for the model and the event strategy.
+#include "bouncecal/contact_integrator.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include <boost/numeric/odeint.hpp>
+
+namespace bouncecal {
+namespace {
+
+namespace odeint = boost::numeric::odeint;
+
+constexpr int kMaxLawState = 7;
+// A switch is crossed on the dense output once the remaining gap is below this (contact
+// times): the state error of the crossing is O(gap^2 / step), far below any tolerance.
+constexpr double kBridgeGap = 1e-10;
+// Event times are located to this relative precision (in units of the contact time).
+constexpr double kEventTolerance = 1e-14;
+
+// Scale factors from physical to integrated (dimensionless) variables.
+struct Scales {
+  double time_s = 1.0;
+  double speed_m_s = 1.0;
+  double length_m = 1.0;
+  double energy_j = 1.0;
+  std::array<double, kMaxLawState> state{};
+};
+
+// Physical view of one scaled state vector.
+struct Phys {
+  double y = 0.0, yd = 0.0, z = 0.0, zd = 0.0, work = 0.0;
+  double delta = 0.0, delta_dot = 0.0;
+  std::array<double, kMaxLawState> state{};
+};
+
+// The scaled ODE system. Layout: [y, y', work, (z, z' if plate), law state...].
+template <size_t N>
+class ScaledContact {
+ public:
+  using State = std::array<double, N>;
+  // The large layout has room for the plate (z, z' at 3, 4); the small one has none.
+  static constexpr bool kBig = N > 4;
+
+  ScaledContact(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
+                double g_m_s2, const PlateModel* plate, const Scales& scales, int n_state)
+      : law_(law),
+        p_(p),
+        body_(body),
+        g_(g_m_s2),
+        plate_(plate),
+        sc_(scales),
+        n_state_(n_state),
+        s0_(kBig ? 5 : 3) {}
+
+  size_t StateOffset() const { return s0_; }
+  const Scales& scales() const { return sc_; }
+
+  Phys Unscale(const State& x) const {
+    Phys ph;
+    ph.y = x[0] * sc_.length_m;
+    ph.yd = x[1] * sc_.speed_m_s;
+    ph.work = x[2] * sc_.energy_j;
+    if constexpr (kBig) {
+      if (plate_) {
+        ph.z = x[3] * sc_.length_m;
+        ph.zd = x[4] * sc_.speed_m_s;
+      }
+    }
+    ph.delta = ph.y - ph.z;
+    ph.delta_dot = ph.yd - ph.zd;
+    for (int i = 0; i < n_state_; ++i) ph.state[i] = x[s0_ + i] * sc_.state[i];
+    return ph;
+  }
+
+  // The law's force, extended continuously past delta = 0 by F(0, delta') so that the dense
+  // output around the end event stays smooth.
+  double Force(const Phys& ph) const {
+    return law_.Force(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data());
+  }
+  double Switch(const Phys& ph) const {
+    return law_.SwitchFunction(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data());
+  }
+  double PlateEnergy(const Phys& ph) const {
+    if (!plate_) return 0.0;
+    return 0.5 * plate_->mass_kg * ph.zd * ph.zd + 0.5 * plate_->stiffness_n_m * ph.z * ph.z;
+  }
+  double BallEnergy(const Phys& ph) const {
+    const double m = body_.mass_kg;
+    return 0.5 * m * ph.yd * ph.yd - m * g_ * ph.y;
+  }
+  double Elastic(const Phys& ph) const {
+    return law_.ElasticEnergy(p_, body_, std::max(ph.delta, 0.0), ph.state.data());
+  }
+  double Internal(const Phys& ph) const {
+    return law_.InternalEnergy(p_, body_, std::max(ph.delta, 0.0), ph.state.data());
+  }
+
+  void operator()(const State& x, State& dx, double /*tau*/) const {
+    const Phys ph = Unscale(x);
+    const double f = Force(ph);
+    const double m = body_.mass_kg;
+    const double t = sc_.time_s;
+    dx.fill(0.0);
+    dx[0] = x[1];                              // L = V T
+    dx[1] = t / sc_.speed_m_s * (g_ - f / m);  // m y'' = m g - F
+    dx[2] = t * f * ph.yd / sc_.energy_j;      // d(work)/dt = F y'
+    if constexpr (kBig) {
+      if (plate_) {
+        dx[3] = x[4];
+        dx[4] = t / sc_.speed_m_s *
+                (f - plate_->stiffness_n_m * ph.z - plate_->damping_n_s_m * ph.zd) /
+                plate_->mass_kg;  // M z'' = F - K z - C z'
+      }
+    }
+    if (n_state_ > 0) {
+      std::array<double, kMaxLawState> rate{};
+      law_.StateRate(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data(),
+                     rate.data());
+      for (int i = 0; i < n_state_; ++i) dx[s0_ + i] = t * rate[i] / sc_.state[i];
+    }
+  }
+
+ private:
+  const ContactLaw& law_;
+  std::span<const double> p_;
+  const ContactBody& body_;
+  double g_;
+  const PlateModel* plate_;
+  Scales sc_;
+  int n_state_;
+  size_t s0_;
+};
+
+// Root of a continuous g on [lo, hi] with g(lo), g(hi) of opposite signs (or g(hi) == 0):
+// Illinois regula falsi safeguarded by bisection every third step. Returns the end of the final
+// bracket on the side of hi (the event has happened there), width <= tol.
+template <class G>
+double LocateRoot(const G& g, double lo, double hi, double g_lo, double g_hi, double tol) {
+  int side = 0;
+  for (int iter = 0; iter < 200 && hi - lo > tol; ++iter) {
+    double c = (g_lo * hi - g_hi * lo) / (g_lo - g_hi);
+    if (iter % 3 == 2 || !(c > lo && c < hi)) c = 0.5 * (lo + hi);
+    const double g_c = g(c);
+    if (g_c == 0.0) return c;
+    if ((g_c > 0.0) == (g_hi > 0.0)) {
+      hi = c;
+      g_hi = g_c;
+      if (side == -1) g_lo *= 0.5;
+      side = -1;
+    } else {
+      lo = c;
+      g_lo = g_c;
+      if (side == +1) g_hi *= 0.5;
+      side = +1;
+    }
+  }
+  return hi;
+}
+
+template <size_t N>
+bool AllFinite(const std::array<double, N>& x) {
+  for (double v : x) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+
+template <size_t N>
+ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
+                     double v_in, double g, const PlateModel* plate,
+                     const ContactRunOptions& options) {
+  using State = std::array<double, N>;
+  using Stepper = odeint::runge_kutta_dopri5<State>;
+  ContactRun run;
+  const int n_state = law.StateSize();
+
+  Scales sc;
+  sc.time_s = EstimateContactTime(law, p, body, v_in);
+  sc.speed_m_s = v_in;
+  sc.length_m = v_in * sc.time_s;
+  sc.energy_j = 0.5 * body.mass_kg * v_in * v_in;
+  run.contact_time_scale_s = sc.time_s;
+
+  // Law state: initial value, and a scale from the initial value and a probe of the rate.
+  std::array<double, kMaxLawState> s0{}, rate{};
+  law.InitialState(p, body, v_in, s0.data());
+  if (n_state > 0) {
+    law.StateRate(p, body, 0.3 * sc.length_m, 0.5 * v_in, s0.data(), rate.data());
+  }
+  for (int i = 0; i < kMaxLawState; ++i) {
+    double s = std::max(std::abs(s0[i]), std::abs(rate[i]) * sc.time_s);
+    sc.state[i] = (std::isfinite(s) && s > 0.0) ? s : 1.0;
+  }
+
+  const ScaledContact<N> sys(law, p, body, g, plate, sc, n_state);
+  State x{};
+  x[1] = 1.0;
+  for (int i = 0; i < n_state; ++i) x[sys.StateOffset() + i] = s0[i] / sc.state[i];
+  State f{};
+  sys(x, f, 0.0);
+
+  auto ctrl = odeint::make_controlled(options.abs_tolerance, options.rel_tolerance, Stepper());
+  const double stuck_energy =
+      0.5 * body.mass_kg * options.stuck_speed_m_s * options.stuck_speed_m_s;
+  const bool force_zero_end = law.EndRule() == ContactEnd::kForceZero;
+
+  double t = 0.0;
+  double dt = 1e-3;
+  double switch_sign = sys.Switch(sys.Unscale(x)) >= 0.0 ? 1.0 : -1.0;
+  bool was_loaded = false;   // F > 0 seen (for the F = 0 end rule)
+  bool force_rising = true;  // dF/dt > 0 at the start of the current step
+  State x_new{}, f_new{}, xd{};
+
+  auto dense = [&](double tau, double t0, double t1, const State& x0, const State& f0,
+                   const State& x1, const State& f1) {
+    ctrl.stepper().calc_state(tau, xd, x0, f0, t0, x1, f1, t1);
+    return sys.Unscale(xd);
+  };
+  auto finish = [&](const State& xe, double te) {
+    const Phys ph = sys.Unscale(xe);
+    run.contact_s = te * sc.time_s;
+    run.work_j = ph.work;
+    run.elastic_end_j = sys.Elastic(ph);
+    run.plate_end_j = sys.PlateEnergy(ph);
+    run.internal_end_j = sys.Internal(ph);
+    run.ball_energy_end_j = sys.BallEnergy(ph);
+    run.separation_depth_m = ph.y;
+    return ph;
+  };
+
+  while (true) {
+    if (run.steps >= options.max_steps) {
+      finish(x, t);
+      run.end = ContactRun::End::kStepLimit;
+      std::ostringstream os;
+      os << law.Name() << ": contact not resolved within " << options.max_steps
+         << " integrator steps (t = " << t * sc.time_s << " s, v_in = " << v_in << " m/s)";
+      run.detail = os.str();
+      return run;
+    }
+    ++run.steps;
+    double t1 = t;
+    const double dt_try = dt;
+    if (ctrl.try_step(sys, x, f, t1, x_new, f_new, dt) == odeint::fail) continue;
+    if (!AllFinite(x_new) || !AllFinite(f_new)) {
+      // Non-finite force at a stage (e.g. a law evaluated out of its domain): smaller step.
+      dt = 0.25 * dt_try;
+      t1 = t;
+      if (dt < 1e-15) {
+        finish(x, t);
+        run.end = ContactRun::End::kStepLimit;
+        run.detail = law.Name() +
+                     ": the force is not finite at t = " + std::to_string(t * sc.time_s) +
+                     " s (step size underflow)";
+        return run;
+      }
+      continue;
+    }
+    const double tol_tau = kEventTolerance * std::max(1.0, t1);
+
+    // 1. Switch events: never step over one (see header).
+    const double s_new = sys.Switch(sys.Unscale(x_new)) >= 0.0 ? 1.0 : -1.0;
+    if (s_new != switch_sign) {
+      auto gs = [&](double tau) {
+        return sys.Switch(dense(tau, t, t1, x, f, x_new, f_new)) * switch_sign;
+      };
+      const double g0 = sys.Switch(sys.Unscale(x)) * switch_sign;
+      const double g1 = sys.Switch(sys.Unscale(x_new)) * switch_sign;
+      const double ts = g0 > 0.0 && g1 < 0.0 ? LocateRoot(gs, t, t1, g0, g1, tol_tau)
+                        : g0 > 0.0           ? t1
+                                             : t;
+      const double gap = ts - t;
+      if (gap > kBridgeGap) {
+        dt = 0.999 * gap;  // retry up to just before the switch, all stages on the old branch
+        continue;
+      }
+      // Cross the tiny gap on the dense output and restart on the new branch.
+      ctrl.stepper().calc_state(ts, xd, x, f, t, x_new, f_new, t1);
+      x = xd;
+      t = ts;
+      sys(x, f, t);
+      switch_sign = s_new;
+      ++run.switches;
+      dt = std::max(dt, 1e-6);
+      continue;
+    }
+
+    // 2. Contact end: delta returns to 0 (or F to 0 for kForceZero laws).
+    const Phys p1 = sys.Unscale(x_new);
+    const double f1 = sys.Force(p1);
+    double t_end = -1.0;
+    if (p1.delta <= 0.0 && t1 > 0.0) {
+      const Phys p0 = sys.Unscale(x);
+      if (p0.delta > 0.0) {
+        auto gd = [&](double tau) { return dense(tau, t, t1, x, f, x_new, f_new).delta; };
+        t_end = LocateRoot(gd, t, t1, p0.delta, p1.delta, tol_tau);
+      } else {
+        t_end = t1;  // cannot happen after the first step; kept for robustness
+      }
+    }
+    if (force_zero_end && was_loaded && f1 <= 0.0) {
+      const double f0 = sys.Force(sys.Unscale(x));
+      auto gf = [&](double tau) { return sys.Force(dense(tau, t, t1, x, f, x_new, f_new)); };
+      const double tf = f0 > 0.0 ? LocateRoot(gf, t, t1, f0, f1, tol_tau) : t;
+      if (t_end < 0.0 || tf < t_end) t_end = tf;
+    }
+    if (f1 > 0.0) was_loaded = true;
+
+    // Peaks over [t, min(t1, t_end)].
+    const double t_hi = t_end >= 0.0 ? t_end : t1;
+    State x_hi = x_new;
+    if (t_end >= 0.0) ctrl.stepper().calc_state(t_end, x_hi, x, f, t, x_new, f_new, t1);
+    {
+      const Phys a = sys.Unscale(x);
+      const Phys b = sys.Unscale(x_hi);
+      const double fb = sys.Force(b);
+      run.peak_overlap_m = std::max(run.peak_overlap_m, b.delta);
+      run.peak_force_n = std::max(run.peak_force_n, fb);
+      // Force maximum inside this step: F rising at its start, falling at its end.
+      const double h_step = t_hi - t;
+      const bool rising_end =
+          h_step > 0.0 && fb > sys.Force(dense(t_hi - 1e-6 * h_step, t, t1, x, f, x_new, f_new));
+      if (force_rising && !rising_end && h_step > 0.0) {
+        double lo = t, hi = t_hi;  // golden-section search for the maximum of F
+        constexpr double kInvPhi = 0.6180339887498949;
+        double c1 = hi - kInvPhi * (hi - lo), c2 = lo + kInvPhi * (hi - lo);
+        double f1c = sys.Force(dense(c1, t, t1, x, f, x_new, f_new));
+        double f2c = sys.Force(dense(c2, t, t1, x, f, x_new, f_new));
+        for (int i = 0; i < 60 && hi - lo > tol_tau; ++i) {
+          if (f1c < f2c) {
+            lo = c1;
+            c1 = c2;
+            f1c = f2c;
+            c2 = lo + kInvPhi * (hi - lo);
+            f2c = sys.Force(dense(c2, t, t1, x, f, x_new, f_new));
+          } else {
+            hi = c2;
+            c2 = c1;
+            f2c = f1c;
+            c1 = hi - kInvPhi * (hi - lo);
+            f1c = sys.Force(dense(c1, t, t1, x, f, x_new, f_new));
+          }
+        }
+        run.peak_force_n = std::max(run.peak_force_n, std::max(f1c, f2c));
+      }
+      force_rising = rising_end;
+      if (a.delta_dot > 0.0 && b.delta_dot <= 0.0) {
+        auto gv = [&](double tau) { return dense(tau, t, t1, x, f, x_new, f_new).delta_dot; };
+        const double tm = LocateRoot(gv, t, t_hi, a.delta_dot, b.delta_dot, tol_tau);
+        const Phys pm = dense(tm, t, t1, x, f, x_new, f_new);
+        run.peak_overlap_m = std::max(run.peak_overlap_m, pm.delta);
+        run.peak_force_n = std::max(run.peak_force_n, sys.Force(pm));
+      }
+    }
+
+    if (t_end >= 0.0) {
+      const Phys pe = finish(x_hi, t_end);
+      run.v_out_m_s = std::max(0.0, -pe.yd);
+      run.end = ContactRun::End::kSeparated;
+      return run;
+    }
+
+    x = x_new;
+    f = f_new;
+    t = t1;
+
+    // 3. Stuck: the energy left cannot send the ball off faster than stuck_speed, or the
+    // contact lasts far longer than any rebound would.
+    const Phys pc = sys.Unscale(x);
+    const double e_left =
+        sys.BallEnergy(pc) + sys.Elastic(pc) + sys.PlateEnergy(pc) + sys.Internal(pc);
+    const bool energy_gone = stuck_energy > 0.0 && e_left < stuck_energy && pc.delta > 0.0;
+    if (energy_gone || t > options.max_contact_time_factor) {
+      finish(x, t);
+      run.end = ContactRun::End::kStuck;
+      std::ostringstream os;
+      if (energy_gone) {
+        os << "the ball stays in contact: energy left " << e_left
+           << " J cannot lift it off faster than " << options.stuck_speed_m_s
+           << " m/s (t = " << t * sc.time_s << " s into the contact)";
+      } else {
+        os << "the ball stays in contact for more than " << options.max_contact_time_factor
+           << " contact-time estimates (" << t * sc.time_s << " s)";
+      }
+      run.detail = os.str();
+      return run;
+    }
+  }
+}
+
+// Elastic energy of the law at overlap d with the initial state (NaN-safe).
+double ElasticAt(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
+                 const double* s0, double d) {
+  const double w = law.ElasticEnergy(p, body, d, s0);
+  return std::isfinite(w) ? w : 0.0;
+}
+
+}  // namespace
+
+double EstimateContactTime(const ContactLaw& law, std::span<const double> p,
+                           const ContactBody& body, double v_in_m_s) {
+  if (auto tc = law.ContactTime(p, body, v_in_m_s); tc && std::isfinite(*tc) && *tc > 0.0) {
+    return *tc;
+  }
+  std::array<double, kMaxLawState> s0{};
+  law.InitialState(p, body, v_in_m_s, s0.data());
+  const double target = 0.5 * body.mass_kg * v_in_m_s * v_in_m_s;
+  // Bracket delta_max on a log scale between 1e-18 m and 1e3 R, then bisect in log space.
+  double lo = 1e-18, hi = 1e-18;
+  while (hi < 1e3 * body.radius_m && ElasticAt(law, p, body, s0.data(), hi) < target) {
+    lo = hi;
+    hi *= 10.0;
+  }
+  if (ElasticAt(law, p, body, s0.data(), hi) >= target) {
+    for (int i = 0; i < 60; ++i) {
+      const double mid = std::sqrt(lo * hi);
+      (ElasticAt(law, p, body, s0.data(), mid) < target ? lo : hi) = mid;
+    }
+    // Linear spring: t_c = pi delta_max / v; Hertz: 2.94 delta_max / v (PHYSICS.md §2).
+    return 3.0 * hi / v_in_m_s;
+  }
+  // No usable elastic energy (a purely dissipative user law): the time to cross 1e-3 R.
+  return 1e-3 * body.radius_m / v_in_m_s;
+}
+
+ContactRun RunContact(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
+                      double v_in_m_s, double g_m_s2, const PlateModel* plate,
+                      const ContactRunOptions& options) {
+  const int n_state = law.StateSize();
+  if (n_state > kMaxLawState || n_state < 0) {
+    ContactRun r;
+    r.end = ContactRun::End::kStepLimit;
+    r.detail = law.Name() + ": " + std::to_string(n_state) + " internal state variables (at most " +
+               std::to_string(kMaxLawState) + " supported)";
+    return r;
+  }
+  // Small fixed-size state when nothing but the ball and at most one law variable is
+  // integrated: a disabled effect (the plate) costs nothing.
+  if (plate == nullptr && n_state <= 1) {
+    return Integrate<4>(law, p, body, v_in_m_s, g_m_s2, nullptr, options);
+  }
+  return Integrate<5 + kMaxLawState>(law, p, body, v_in_m_s, g_m_s2, plate, options);
+}
+
+}  // namespace bouncecal

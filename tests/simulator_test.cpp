@@ -1,0 +1,370 @@
+// Simulator tests: analytic oracles (geometric series, closed-form contacts, exact flights),
+// then properties (effects change what they should, energy ledger balances, clean stops).
+#include "bouncecal/simulator.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/contact_integrator.hpp"
+#include "bouncecal/error.hpp"
+#include "bouncecal/flight.hpp"
+#include "bouncecal/law_registry.hpp"
+
+namespace bouncecal {
+namespace {
+
+Scene SeedScene() {
+  Scene s;  // seed 002: 1 cm steel ball from 0.2 m, g = 9.8
+  s.law.name = "walton-braun";
+  s.law.parameters = {{"k", 1e7}, {"gamma", 0.5}};
+  return s;
+}
+
+std::unique_ptr<ContactLaw> Law(const Scene& s) { return CreateLaw(s.law, s); }
+
+Simulation RunSim(const Scene& s, const SimulatorOptions& o = {}) {
+  auto law = Law(s);
+  return Simulate(s, *law, law->ParameterValues(), o);
+}
+
+double Rel(double a, double b) { return std::abs(a - b) / std::abs(b); }
+
+// Vacuum, Walton-Braun (constant e, constant contact time): impact k is at
+// t_k = sum_{j<k} (t_c + 2 v0 e^{j+1} / g), v_in,k = v0 e^k.
+void ExpectGeometric(const Simulation& sim, const Scene& s, double tol) {
+  const double g = s.environment.g_m_s2;
+  const double v0 = std::sqrt(2.0 * g * *s.drop.height_m);
+  const double gamma = s.law.parameters.at("gamma"), k = s.law.parameters.at("k");
+  const double e = std::sqrt((1.0 - gamma) / (1.0 + gamma));  // seed 002 eq. 23
+  const double m = s.ball.Mass();
+  const double tc =
+      0.5 * M_PI * (std::sqrt(m / ((1 + gamma) * k)) + std::sqrt(m / ((1 - gamma) * k)));
+  ASSERT_GE(sim.impacts.size(), 15u);  // v < rest speed 1e-4 m/s after 19 impacts
+  double t = 0.0, v = v0;
+  for (size_t i = 0; i < 15; ++i) {
+    SCOPED_TRACE("impact " + std::to_string(i));
+    if (i > 0) {
+      EXPECT_LE(Rel(sim.impacts[i].time_s, t), tol);
+    }
+    EXPECT_LE(Rel(sim.impacts[i].v_in_m_s, v), tol);
+    EXPECT_LE(Rel(sim.impacts[i].contact_s, tc), tol);
+    t += tc + 2.0 * v * e / g;
+    v *= e;
+  }
+}
+
+TEST(Simulator, WaltonBraunVacuumIsTheExactGeometricSeriesClosedForm) {
+  Scene s = SeedScene();
+  SimulatorOptions o;
+  o.gravity_in_contact = false;  // as the closed form
+  const Simulation sim = RunSim(s, o);
+  EXPECT_EQ(sim.total_steps, 0);  // closed form used
+  ExpectGeometric(sim, s, 1e-9);
+}
+
+TEST(Simulator, WaltonBraunIntegratedLocatesTheBranchSwitch) {
+  Scene s = SeedScene();
+  SimulatorOptions o;
+  o.gravity_in_contact = false;
+  o.use_closed_form = false;
+  o.rel_tolerance = 1e-11;
+  s.limits.max_impacts = 25;
+  const Simulation sim = RunSim(s, o);
+  EXPECT_GT(sim.total_steps, 0);
+  ExpectGeometric(sim, s, 1e-9);
+}
+
+TEST(Simulator, LinearDashpotClosedFormAndIntegrationAgree) {
+  Scene s;
+  const ContactBody body = ContactBody::BallOnRigidWall(s.ball.Mass(), s.ball.Radius());
+  for (const char* name : {"linear-dashpot", "linear-dashpot-force-zero"}) {
+    for (double c : {2.0, 20.0, 60.0}) {  // zeta 0.016, 0.16, 0.48 for k = 1e6
+      SCOPED_TRACE(std::string(name) + " c = " + std::to_string(c));
+      s.law.name = name;
+      s.law.parameters = {{"k", 1e6}, {"c", c}};
+      auto law = Law(s);
+      const auto p = law->ParameterValues();
+      SimulatorOptions closed, integrated;
+      integrated.use_closed_form = false;
+      integrated.rel_tolerance = 1e-11;
+      int steps = 0;
+      const ContactOutcome a = SimulateContact(*law, p, body, 1.5, 0.0, closed, &steps);
+      EXPECT_EQ(steps, 0);
+      const ContactOutcome b = SimulateContact(*law, p, body, 1.5, 0.0, integrated, &steps);
+      EXPECT_GT(steps, 10);
+      EXPECT_LE(Rel(b.restitution, a.restitution), 1e-7);
+      EXPECT_LE(Rel(b.contact_time_s, a.contact_time_s), 1e-7);
+      EXPECT_LE(Rel(b.peak_overlap_m, a.peak_overlap_m), 1e-7);
+      EXPECT_LE(Rel(b.peak_force_n, a.peak_force_n), 1e-7);
+      EXPECT_NEAR(b.end_overlap_m, a.end_overlap_m, 1e-7 * a.peak_overlap_m);
+    }
+  }
+}
+
+TEST(Simulator, GravityInContactChangesTheReboundByAboutGTc) {
+  Scene s;
+  s.law.name = "linear-dashpot";
+  s.law.parameters = {{"k", 1e5}, {"c", 5.0}};
+  auto law = Law(s);
+  const ContactBody body = ContactBody::BallOnRigidWall(s.ball.Mass(), s.ball.Radius());
+  const auto p = law->ParameterValues();
+  const ContactOutcome free = SimulateContact(*law, p, body, 0.5, 0.0);
+  const ContactOutcome grav = SimulateContact(*law, p, body, 0.5, 9.8);
+  // Gravity presses the ball in: longer contact, lower rebound, by O(g t_c / v) ~ 1e-3.
+  EXPECT_GT(grav.contact_time_s, free.contact_time_s);
+  EXPECT_LT(grav.restitution, free.restitution);
+  EXPECT_LT(free.restitution - grav.restitution, 10.0 * 9.8 * free.contact_time_s / 0.5);
+}
+
+TEST(Simulator, QuadraticDragSequenceFollowsTheFlightModel) {
+  Scene s = SeedScene();
+  s.effects.drag = DragModel::kQuadratic;
+  s.ball.diameter_m = 0.04;  // a light ball: drag matters
+  s.ball.density_kg_m3 = 80.0;
+  s.limits.max_impacts = 15;
+  const Simulation sim = RunSim(s);
+  const FlightModel f = FlightModel::FromScene(s);
+  ASSERT_EQ(sim.impacts.size(), 15u);
+  EXPECT_LE(Rel(sim.impacts[0].v_in_m_s, f.FallArrivalSpeed(0.2)), 1e-12);
+  for (size_t k = 0; k + 1 < sim.impacts.size(); ++k) {
+    const SimImpact& a = sim.impacts[k];
+    const SimImpact& b = sim.impacts[k + 1];
+    SCOPED_TRACE(k);
+    EXPECT_LE(Rel(b.time_s - a.time_s - a.contact_s, f.FlightTime(a.v_out_m_s)), 1e-9);
+    EXPECT_LE(Rel(b.v_in_m_s, f.ArrivalSpeed(a.v_out_m_s)), 1e-12);
+    EXPECT_LT(b.v_in_m_s, a.v_out_m_s);  // drag took energy
+  }
+  EXPECT_GT(sim.energy.dissipated_drag_j, 1e-3 * sim.energy.initial_j);
+  EXPECT_LE(std::abs(sim.energy.balance_error_j), 1e-7 * sim.energy.initial_j);
+}
+
+TEST(Simulator, EachEffectChangesWhatItShouldAndNothingElse) {
+  Scene base = SeedScene();
+  base.limits.max_impacts = 8;
+  const Simulation off = RunSim(base);
+  EXPECT_EQ(off.energy.dissipated_drag_j, 0.0);
+
+  // Drag: slower arrivals and later... earlier impacts; the law's e is unchanged (constant-e
+  // law); the release fall dissipates energy.
+  Scene drag = base;
+  drag.effects.drag = DragModel::kQuadratic;
+  const Simulation d = RunSim(drag);
+  EXPECT_LT(d.impacts[0].v_in_m_s, off.impacts[0].v_in_m_s);
+  EXPECT_LT(d.impacts[3].time_s, off.impacts[3].time_s);
+  EXPECT_GT(d.energy.dissipated_drag_j, 0.0);
+  Scene lin = base;
+  lin.effects.drag = DragModel::kLinear;
+  const Simulation l = RunSim(lin);
+  EXPECT_LT(l.impacts[0].v_in_m_s, off.impacts[0].v_in_m_s);
+  EXPECT_GT(l.energy.dissipated_drag_j, 0.0);
+
+  // Buoyancy: g_eff = g (1 - 1.2/7800): slower arrival by sqrt of that, no drag loss.
+  Scene buoy = base;
+  buoy.effects.buoyancy = true;
+  const Simulation b = RunSim(buoy);
+  EXPECT_NEAR(b.impacts[0].v_in_m_s / off.impacts[0].v_in_m_s, std::sqrt(1.0 - 1.2 / 7800.0),
+              1e-12);
+  EXPECT_EQ(b.energy.dissipated_drag_j, 0.0);
+
+  // Surface compliance: a soft heavy plate takes energy: lower e, longer contact; flight
+  // physics (no drag) untouched.
+  Scene comp = base;
+  comp.effects.surface_compliance = true;
+  comp.surface.kind = Surface::Kind::kSpringMass;
+  comp.surface.mass_kg = 0.05;
+  comp.surface.stiffness_n_m = 1e6;
+  comp.surface.damping_n_s_m = 5.0;
+  const Simulation c = RunSim(comp);
+  EXPECT_EQ(c.impacts[0].v_in_m_s, off.impacts[0].v_in_m_s);
+  EXPECT_LT(c.impacts[0].v_out_m_s / c.impacts[0].v_in_m_s,
+            off.impacts[0].v_out_m_s / off.impacts[0].v_in_m_s - 1e-3);
+  // The plate moves with the ball: the reduced mass m M / (m + M) shortens the contact.
+  EXPECT_LT(c.impacts[0].contact_s, off.impacts[0].contact_s * (1.0 - 1e-3));
+  EXPECT_EQ(c.energy.dissipated_drag_j, 0.0);
+  EXPECT_LE(std::abs(c.energy.balance_error_j), 1e-7 * c.energy.initial_j);
+
+  // Contact duration flag is an analysis option: the simulator always simulates contacts.
+  Scene cd = base;
+  cd.effects.contact_duration = true;
+  const Simulation t = RunSim(cd);
+  for (size_t k = 0; k < off.impacts.size(); ++k) {
+    EXPECT_EQ(t.impacts[k].time_s, off.impacts[k].time_s);
+  }
+}
+
+TEST(Simulator, EnergyLedgerBalancesAndMatchesTheSpeeds) {
+  // Laws whose contact ends at delta = 0 (the ball leaves at the surface level).
+  for (const char* name : {"walton-braun", "linear-dashpot"}) {
+    SCOPED_TRACE(name);
+    Scene s = SeedScene();
+    s.law.name = name;
+    s.law.parameters.clear();
+    s.limits.max_impacts = 30;
+    SimulatorOptions o;
+    o.use_closed_form = false;  // integrated with gravity: the balance tests the integrator
+    const Simulation sim = RunSim(s, o);
+    ASSERT_GT(sim.impacts.size(), 3u);
+    double contact = 0.0;
+    for (const SimImpact& i : sim.impacts) {
+      contact += 0.5 * s.ball.Mass() * (i.v_in_m_s * i.v_in_m_s - i.v_out_m_s * i.v_out_m_s);
+    }
+    const EnergyLedger& e = sim.energy;
+    EXPECT_NEAR(e.initial_j, s.ball.Mass() * 9.8 * 0.2, 1e-15);
+    EXPECT_LE(std::abs(e.balance_error_j), 1e-7 * e.initial_j);
+    EXPECT_LE(std::abs(e.dissipated_contact_j - contact), 1e-7 * e.initial_j);
+    EXPECT_GT(e.dissipated_contact_j, 0.0);
+  }
+}
+
+TEST(Simulator, OverdampedLinearDashpotSticksAndForceZeroRuleDoesNot) {
+  Scene s = SeedScene();
+  s.law.name = "linear-dashpot";
+  s.law.parameters = {{"k", 1e6}, {"c", 1000.0}};  // zeta = 8.7
+  const Simulation stuck = RunSim(s);
+  EXPECT_EQ(stuck.stop_reason, StopReason::kStuck) << stuck.stop_detail;
+  ASSERT_EQ(stuck.impacts.size(), 1u);
+  EXPECT_EQ(stuck.impacts[0].v_out_m_s, 0.0);
+  SimulatorOptions integrated;
+  integrated.use_closed_form = false;
+  const Simulation stuck2 = RunSim(s, integrated);
+  EXPECT_EQ(stuck2.stop_reason, StopReason::kStuck) << stuck2.stop_detail;
+  EXPECT_LT(stuck2.total_steps, 5000);
+
+  s.law.name = "linear-dashpot-force-zero";
+  s.law.parameters = {{"k", 1e6}, {"c", 150.0}};  // zeta = 1.3: F = 0 before delta = 0
+  s.limits.max_impacts = 3;
+  const Simulation fz = RunSim(s);
+  ASSERT_GE(fz.impacts.size(), 2u);
+  EXPECT_GT(fz.impacts[0].v_out_m_s, 0.0);
+}
+
+TEST(Simulator, StopsCleanlyAndSaysWhy) {
+  Scene s = SeedScene();
+  s.limits.max_impacts = 5;
+  EXPECT_EQ(RunSim(s).stop_reason, StopReason::kMaxImpacts);
+  EXPECT_EQ(RunSim(s).impacts.size(), 5u);
+
+  s.limits.max_impacts = 10000;
+  s.limits.horizon_s = 0.3;
+  const Simulation h = RunSim(s);
+  EXPECT_EQ(h.stop_reason, StopReason::kHorizon);
+  EXPECT_LE(h.impacts.back().time_s, 0.3);
+  EXPECT_LE(std::abs(h.energy.balance_error_j), 1e-9 * h.energy.initial_j);
+
+  s.limits.horizon_s = 60.0;
+  const Simulation r = RunSim(s);  // e = 0.577: below 1e-4 m/s after ~16 impacts
+  EXPECT_EQ(r.stop_reason, StopReason::kAtRest) << r.stop_detail;
+  EXPECT_LT(r.impacts.size(), 40u);
+
+  // Zeno: no rest speed, the geometric tail is detected instead of looping to max_impacts.
+  s.limits.rest_speed_m_s = 0.0;
+  SimulatorOptions o;
+  o.gravity_in_contact = false;
+  const Simulation z = RunSim(s, o);
+  EXPECT_EQ(z.stop_reason, StopReason::kAtRest) << z.stop_detail;
+  EXPECT_NE(z.stop_detail.find("Zeno"), std::string::npos);
+  EXPECT_LT(z.impacts.size(), 100u);
+
+  // Step limit: reported, not a hang.
+  Scene hs = SeedScene();
+  SimulatorOptions few;
+  few.use_closed_form = false;
+  few.max_steps_per_contact = 10;
+  const Simulation lim = RunSim(hs, few);
+  EXPECT_EQ(lim.stop_reason, StopReason::kStepLimit);
+  EXPECT_NE(lim.stop_detail.find("walton-braun"), std::string::npos);
+}
+
+TEST(Simulator, ReleaseTimeAndImpactSpeedStart) {
+  Scene s = SeedScene();
+  s.drop.first_impact_time_s = 1.25;
+  const Simulation a = RunSim(s);
+  EXPECT_EQ(a.impacts[0].time_s, 1.25);
+  Scene v = SeedScene();
+  v.drop.height_m.reset();
+  v.drop.impact_speed_m_s = 1.0;
+  const Simulation b = RunSim(v);
+  EXPECT_EQ(b.impacts[0].v_in_m_s, 1.0);
+  EXPECT_NEAR(b.energy.initial_j, 0.5 * v.ball.Mass(), 1e-15);
+}
+
+TEST(Simulator, BadInputIsAClearError) {
+  Scene s = SeedScene();
+  auto law = Law(s);
+  auto p = law->ParameterValues();
+  SimulatorOptions o;
+  o.rel_tolerance = 0.0;
+  std::string why;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("rel_tolerance"), std::string::npos);
+  EXPECT_THROW(Simulate(s, *law, p, o), Error);
+  o = {};
+  o.max_steps_per_contact = 0;
+  EXPECT_FALSE(o.IsValid(&why));
+  std::vector<double> bad = p;
+  bad[1] = std::nan("");
+  try {
+    Simulate(s, *law, bad, {});
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kBadParameter);
+    EXPECT_NE(std::string(e.what()).find("gamma"), std::string::npos);
+  }
+  const ContactBody body = ContactBody::BallOnRigidWall(s.ball.Mass(), s.ball.Radius());
+  EXPECT_THROW(SimulateContact(*law, p, body, -1.0, 0.0), Error);
+  EXPECT_THROW(SimulateContact(*law, p, body, 1.0, std::nan("")), Error);
+  Scene comp = s;
+  comp.effects.surface_compliance = true;
+  comp.surface.kind = Surface::Kind::kSpringMass;
+  comp.surface.mass_kg = 0.0;
+  EXPECT_THROW(Simulate(comp, *law, p, {}), Error);
+}
+
+// The CLI prints the documented JSON.
+TEST(SimulateCli, JsonHasTheStableKeys) {
+  const std::string cmd = std::string(BOUNCECAL_BINARY) +
+                          " simulate --law walton-braun --set gamma=0.5 --max-impacts 4 --json";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
+  ASSERT_EQ(pclose(pipe), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["law"]["name"], "walton-braun");
+  EXPECT_DOUBLE_EQ(j["law"]["parameters"]["gamma"].get<double>(), 0.5);
+  ASSERT_EQ(j["impacts"].size(), 4u);
+  for (const char* key : {"index", "time_s", "v_in_m_s", "v_out_m_s", "e", "contact_s",
+                          "peak_overlap_m", "peak_force_n"}) {
+    EXPECT_TRUE(j["impacts"][0].contains(key)) << key;
+  }
+  EXPECT_NEAR(j["impacts"][1]["e"].get<double>(), std::sqrt(1.0 / 3.0), 1e-6);
+  for (const char* key : {"initial_j", "final_mechanical_j", "dissipated_contact_j",
+                          "dissipated_drag_j", "internal_j", "balance_error_j"}) {
+    EXPECT_TRUE(j["energy"].contains(key)) << key;
+  }
+  EXPECT_EQ(j["stop_reason"], "max_impacts");
+  EXPECT_TRUE(j.contains("stop_detail"));
+}
+
+TEST(SimulateCli, UnknownLawFailsWithItsName) {
+  const std::string cmd =
+      std::string(BOUNCECAL_BINARY) + " simulate --law no-such-law 2>&1 >/dev/null";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
+  const int rc = pclose(pipe);
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("no-such-law"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace bouncecal

@@ -34,16 +34,15 @@ bool ContactLaw::IsValid(std::span<const double> p, const ContactBody& body,
     const auto& s = specs[i];
     if (!std::isfinite(p[i]) || p[i] < s.lower || p[i] > s.upper) {
       std::ostringstream os;
-      os << "parameter " << s.name << " = " << p[i] << " " << s.unit << " is outside ["
-         << s.lower << ", " << s.upper << "]";
+      os << "parameter " << s.name << " = " << p[i] << " " << s.unit << " is outside [" << s.lower
+         << ", " << s.upper << "]";
       return fail(os.str());
     }
   }
   return true;
 }
 
-void ContactLaw::InitialState(std::span<const double>, const ContactBody&, double,
-                              double*) const {}
+void ContactLaw::InitialState(std::span<const double>, const ContactBody&, double, double*) const {}
 
 void ContactLaw::StateRate(std::span<const double>, const ContactBody&, double, double,
                            const double*, double*) const {}
@@ -51,6 +50,11 @@ void ContactLaw::StateRate(std::span<const double>, const ContactBody&, double, 
 double ContactLaw::SwitchFunction(std::span<const double>, const ContactBody&, double, double,
                                   const double*) const {
   return 1.0;
+}
+
+double ContactLaw::ForceOnBranch(std::span<const double> p, const ContactBody& body, double delta_m,
+                                 double delta_dot_m_s, const double* state, bool) const {
+  return Force(p, body, delta_m, delta_dot_m_s, state);
 }
 
 double ContactLaw::InternalEnergy(std::span<const double>, const ContactBody&, double,
@@ -68,8 +72,8 @@ std::optional<double> ContactLaw::ContactTime(std::span<const double>, const Con
   return std::nullopt;
 }
 
-std::optional<ContactOutcome> ContactLaw::SolveContact(std::span<const double>,
-                                                       const ContactBody&, double) const {
+std::optional<ContactOutcome> ContactLaw::SolveContact(std::span<const double>, const ContactBody&,
+                                                       double) const {
   return std::nullopt;
 }
 
@@ -79,8 +83,8 @@ std::optional<std::vector<double>> ContactLaw::DampingForRestitution(std::span<c
   return std::nullopt;
 }
 
-bool ContactLaw::RestitutionGradient(std::span<const double>, const ContactBody&, double,
-                                     double*, double*) const {
+bool ContactLaw::RestitutionGradient(std::span<const double>, const ContactBody&, double, double*,
+                                     double*) const {
   return false;
 }
 

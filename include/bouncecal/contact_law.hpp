@@ -100,6 +100,15 @@ class ContactLaw {
   // SwitchFunction. Default: none (returns +1).
   virtual double SwitchFunction(std::span<const double> p, const ContactBody& body, double delta_m,
                                 double delta_dot_m_s, const double* state) const;
+  // The force on one side of the switch, continued smoothly past it: positive_branch selects
+  // the branch where SwitchFunction > 0. An adaptive integrator must evaluate every trial point
+  // of a step on the branch the step started on (else its error control rejects every step that
+  // straddles the jump and the step size collapses), then locate the sign change of
+  // SwitchFunction on the dense output and restart there on the other branch.
+  // Default: Force (laws without a discontinuity).
+  virtual double ForceOnBranch(std::span<const double> p, const ContactBody& body, double delta_m,
+                               double delta_dot_m_s, const double* state,
+                               bool positive_branch) const;
 
   // --- energy bookkeeping (J) ---------------------------------------------------------------
   // Energy stored elastically at this overlap and state (recoverable part).

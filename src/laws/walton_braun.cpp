@@ -7,7 +7,8 @@
 //   t_c = (pi/2) (1/omega_load + 1/omega_unload)
 //   inverse: gamma = (1 - e^2)/(1 + e^2) (= eta/(2 - eta)).
 // The force jumps at delta' = 0 (the branch switch): SwitchFunction = delta' so the integrator
-// stops its step there. Contact ends at delta = 0 (the unloading force is never attractive).
+// stops its step there, and ForceOnBranch continues each branch past it (see contact_law.hpp).
+// Contact ends at delta = 0 (the unloading force is never attractive).
 #include <cmath>
 
 #include "laws/law_base.hpp"
@@ -38,6 +39,11 @@ class WaltonBraun final : public LawBase {
     if (delta_m < 0.0) return 0.0;
     const double factor = delta_dot_m_s > 0.0 ? 1.0 + p[1] : 1.0 - p[1];
     return factor * p[0] * delta_m;
+  }
+  double ForceOnBranch(std::span<const double> p, const ContactBody&, double delta_m, double,
+                       const double*, bool loading) const override {
+    if (delta_m < 0.0) return 0.0;
+    return (loading ? 1.0 + p[1] : 1.0 - p[1]) * p[0] * delta_m;
   }
   double SwitchFunction(std::span<const double>, const ContactBody&, double, double delta_dot_m_s,
                         const double*) const override {

@@ -1,0 +1,265 @@
+// `bouncecal analyze FILE`: recording -> impacts -> per-bounce speeds, restitution, energy loss.
+//
+//   bouncecal analyze drop.wav --height 0.2                 # table on stdout
+//   bouncecal analyze drop.wav --scene pingpong.toml --json # JSON contract below
+//   bouncecal analyze drop.wav --drag quadratic --csv       # one row per bounce
+//
+// = ReadAudio + DetectImpacts (detect.hpp) + AnalyzeBounces (kinematics.hpp) of the main
+// (longest) sequence. The first impact's restitution needs the drop: it is used when a scene file
+// or --height/--impact-speed is given (otherwise the default 0.2 m would be silently assumed).
+//
+// --json: {"file", "sample_rate_hz", "channels", "channel", "scene": {effects, g, drop...},
+//   "sequence": {...}, "bounces": [{"index", "time_s", "time_sigma_s", "interval_s", "v_in_m_s",
+//   "v_in_sigma_m_s", "v_out_m_s", "v_out_sigma_m_s", "e", "e_sigma", "eta", "eta_sigma",
+//   "contact_s", "e_next_correlation"}, ...], "summary": {"mean_eta_first3",
+//   "mean_eta_first3_sigma", "mean_eta_indices", "first_e", "first_e_sigma", "n_bounces",
+//   "n_with_e", "e_min", "e_max"}, "warnings": [...]}. Unknown values are null, never "nan".
+// --csv: header + one row per bounce, unknown values empty.
+// Errors: one line on stderr, exit code from error.hpp, nothing on stdout.
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/audio.hpp"
+#include "bouncecal/detect.hpp"
+#include "bouncecal/error.hpp"
+#include "bouncecal/kinematics.hpp"
+#include "commands.hpp"
+#include "scene_flags.hpp"
+
+namespace bouncecal::cli {
+namespace {
+
+struct AnalyzeFlags {
+  std::string file;
+  std::string channel = "auto";
+  SceneFlags scene;
+  std::optional<double> contact_time_s;
+  bool json = false;
+  bool csv = false;
+};
+
+nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+nlohmann::json Opt(const std::optional<double>& v) { return v ? Num(*v) : nlohmann::json(); }
+
+std::string Fixed(double v, int decimals, int width = 0) {
+  if (!std::isfinite(v)) return std::string(static_cast<size_t>(std::max(width - 1, 0)), ' ') + "-";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%*.*f", width, decimals, v);
+  return buf;
+}
+
+std::string CsvNum(double v) {
+  if (!std::isfinite(v)) return "";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+struct Summary {
+  int n_with_e = 0;
+  double e_min = NAN, e_max = NAN;
+};
+
+Summary Summarize(const Analysis& a) {
+  Summary s;
+  for (const Bounce& b : a.bounces) {
+    if (!std::isfinite(b.e)) continue;
+    ++s.n_with_e;
+    s.e_min = std::isfinite(s.e_min) ? std::min(s.e_min, b.e) : b.e;
+    s.e_max = std::isfinite(s.e_max) ? std::max(s.e_max, b.e) : b.e;
+  }
+  return s;
+}
+
+nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
+  nlohmann::json j;
+  j["source"] = scene.source.empty() ? nlohmann::json() : nlohmann::json(scene.source);
+  j["drag"] = DragModelName(scene.effects.drag);
+  j["buoyancy"] = scene.effects.buoyancy;
+  j["contact_duration"] = scene.effects.contact_duration;
+  j["surface_compliance"] = scene.effects.surface_compliance;
+  j["g_m_s2"] = scene.environment.g_m_s2;
+  j["effective_gravity_m_s2"] = a.effective_gravity_m_s2;
+  j["terminal_speed_m_s"] = Num(a.terminal_speed_m_s);
+  j["drop_height_m"] = use_drop ? Opt(scene.drop.height_m) : nlohmann::json();
+  j["impact_speed_m_s"] = use_drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
+  j["ball"] = {{"diameter_m", scene.ball.diameter_m},
+               {"mass_kg", Num(scene.ball.Mass())},
+               {"density_kg_m3", Num(scene.ball.Density())},
+               {"material", scene.ball.material}};
+  return j;
+}
+
+std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
+  std::ostringstream o;
+  o << "scene: drag " << DragModelName(scene.effects.drag);
+  if (scene.effects.drag != DragModel::kNone) {
+    o << " (terminal speed " << Fixed(a.terminal_speed_m_s, 2) << " m/s)";
+  }
+  o << ", buoyancy " << (scene.effects.buoyancy ? "on" : "off") << ", contact duration "
+    << (scene.effects.contact_duration ? "on" : "off") << "; g_eff "
+    << Fixed(a.effective_gravity_m_s2, 5) << " m/s^2; ball " << scene.ball.material << " "
+    << Fixed(scene.ball.diameter_m * 1000, 2) << " mm";
+  if (!use_drop) {
+    o << "; drop unknown (first e not computed: give --height or --impact-speed)";
+  } else if (scene.drop.height_m) {
+    o << "; drop height " << Fixed(*scene.drop.height_m, 4) << " m";
+  } else if (scene.drop.impact_speed_m_s) {
+    o << "; first impact speed " << Fixed(*scene.drop.impact_speed_m_s, 4) << " m/s";
+  }
+  return o.str();
+}
+
+void Run(const AnalyzeFlags& flags) {
+  // The scene first: it is cheap and its errors should not wait for the detector.
+  Scene scene = ResolveScene(flags.scene);
+  if (flags.contact_time_s) scene.effects.contact_duration = true;  // a given duration is used
+  AnalysisOptions aopt;
+  aopt.use_drop = !flags.scene.scene_file.empty() || flags.scene.height_m.has_value() ||
+                  flags.scene.impact_speed_m_s.has_value();
+  if (flags.contact_time_s) aopt.contact_time_s = *flags.contact_time_s;
+  std::string why;
+  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
+
+  const ChannelSelection selection = ParseChannelSelection(flags.channel);
+  const Audio audio = ReadAudio(flags.file);
+  DetectOptions dopt;
+  dopt.channel = selection;
+  const DetectionResult det = DetectImpacts(audio, dopt);
+  if (det.main_sequence < 0 || det.sequences.empty()) {
+    throw Error(ErrorCode::kNoBounces, flags.file + ": no bounce sequence found");
+  }
+  Analysis an;
+  try {
+    an = AnalyzeBounces(det.main(), scene, aopt);
+  } catch (const Error& e) {
+    if (e.code() == ErrorCode::kNoBounces) throw Error(e.code(), flags.file + ": " + e.what());
+    throw;
+  }
+  std::vector<std::string> warnings = det.warnings;
+  for (const std::string& w : an.warnings) warnings.push_back(w);
+  const Summary sum = Summarize(an);
+  const Sequence& seq = det.main();
+
+  if (flags.json) {
+    nlohmann::json j;
+    j["file"] = flags.file;
+    j["sample_rate_hz"] = audio.info.sample_rate_hz;
+    j["channels"] = audio.info.channels;
+    j["channel"] = det.channel >= 0 ? nlohmann::json(det.channel) : nlohmann::json("mix");
+    j["scene"] = SceneJson(scene, an, aopt.use_drop);
+    j["sequence"] = {{"n_sequences", det.sequences.size()},
+                     {"main_sequence", det.main_sequence},
+                     {"n_impacts", seq.impacts.size()},
+                     {"missed_after", seq.missed_after},
+                     {"end_reason", seq.end_reason}};
+    nlohmann::json bounces = nlohmann::json::array();
+    for (const Bounce& b : an.bounces) {
+      bounces.push_back({{"index", b.index},
+                         {"time_s", b.time_s},
+                         {"time_sigma_s", Num(b.time_sigma_s)},
+                         {"interval_s", Num(b.interval_s)},
+                         {"v_in_m_s", Num(b.v_in_m_s)},
+                         {"v_in_sigma_m_s", Num(b.v_in_sigma_m_s)},
+                         {"v_out_m_s", Num(b.v_out_m_s)},
+                         {"v_out_sigma_m_s", Num(b.v_out_sigma_m_s)},
+                         {"e", Num(b.e)},
+                         {"e_sigma", Num(b.e_sigma)},
+                         {"eta", Num(b.eta)},
+                         {"eta_sigma", Num(b.eta_sigma)},
+                         {"contact_s", Num(b.contact_s)},
+                         {"e_next_correlation", Num(b.e_next_correlation)}});
+    }
+    j["bounces"] = bounces;
+    j["summary"] = {{"mean_eta_first3", Opt(an.mean_eta_first3)},
+                    {"mean_eta_first3_sigma", Opt(an.mean_eta_first3_sigma)},
+                    {"mean_eta_indices", an.mean_eta_indices},
+                    {"first_e", Opt(an.first_e)},
+                    {"first_e_sigma", Opt(an.first_e_sigma)},
+                    {"n_bounces", an.bounces.size()},
+                    {"n_with_e", sum.n_with_e},
+                    {"e_min", Num(sum.e_min)},
+                    {"e_max", Num(sum.e_max)}};
+    j["warnings"] = warnings;
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+
+  for (const std::string& w : warnings) std::fprintf(stderr, "bouncecal: warning: %s\n", w.c_str());
+  std::ostringstream o;
+  if (flags.csv) {
+    o << "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
+         "v_out_sigma_m_s,e,e_sigma,eta,eta_sigma,contact_s\n";
+    for (const Bounce& b : an.bounces) {
+      o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
+        << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
+        << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
+        << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta) << "," << CsvNum(b.eta_sigma) << ","
+        << CsvNum(b.contact_s) << "\n";
+    }
+    std::cout << o.str();
+    return;
+  }
+
+  o << flags.file << ": " << Fixed(audio.info.sample_rate_hz, 0) << " Hz, " << audio.info.channels
+    << " channel(s), "
+    << (det.channel >= 0 ? "channel " + std::to_string(det.channel) : std::string("mix"))
+    << " used; " << seq.impacts.size() << " impacts in the main sequence (of "
+    << det.sequences.size() << " sequence(s)), end: " << seq.end_reason << "\n";
+  o << EffectsLine(scene, an, aopt.use_drop) << "\n\n";
+  o << "    k     time_s  sigma_us  interval_s   v_in_m_s  +-        v_out_m_s  +-        e        "
+       "+-         eta      +-       contact_us\n";
+  for (const Bounce& b : an.bounces) {
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "%5d %10.6f %9s %11s %10s %-9s %10s %-9s %8s %-10s %8s %-8s %10s\n", b.index,
+                  b.time_s, Fixed(b.time_sigma_s * 1e6, 2).c_str(), Fixed(b.interval_s, 6).c_str(),
+                  Fixed(b.v_in_m_s, 5).c_str(), Fixed(b.v_in_sigma_m_s, 5).c_str(),
+                  Fixed(b.v_out_m_s, 5).c_str(), Fixed(b.v_out_sigma_m_s, 5).c_str(),
+                  Fixed(b.e, 5).c_str(), Fixed(b.e_sigma, 6).c_str(), Fixed(b.eta, 5).c_str(),
+                  Fixed(b.eta_sigma, 5).c_str(), Fixed(b.contact_s * 1e6, 1).c_str());
+    o << line;
+  }
+  o << "\nsummary: " << an.bounces.size() << " impacts, " << sum.n_with_e << " with e";
+  if (sum.n_with_e > 0) {
+    o << "; e from " << Fixed(sum.e_min, 4) << " to " << Fixed(sum.e_max, 4);
+  }
+  if (an.first_e) {
+    o << "; first impact e = " << Fixed(*an.first_e, 5) << " +- " << Fixed(*an.first_e_sigma, 5);
+  }
+  o << "\n";
+  if (an.mean_eta_first3) {
+    o << "mean eta of the first three (impacts";
+    for (int k : an.mean_eta_indices) o << " " << k;
+    o << ") = " << Fixed(*an.mean_eta_first3, 5) << " +- " << Fixed(*an.mean_eta_first3_sigma, 5)
+      << "  (seed 002: 0.58 for a steel ball on copper)\n";
+  }
+  std::cout << o.str();
+}
+
+}  // namespace
+
+void RegisterAnalyze(CLI::App& app) {
+  auto flags = std::make_shared<AnalyzeFlags>();
+  CLI::App* sub = app.add_subcommand(
+      "analyze", "impacts -> per-bounce speeds, restitution e and energy loss eta (with sigmas)");
+  sub->add_option("FILE", flags->file, "recording (any format libsndfile reads)")->required();
+  sub->add_option("--channel", flags->channel, "channel: 0, 1, ... (0-based), mix or auto")
+      ->capture_default_str();
+  AddSceneFlags(sub, &flags->scene, /*with_law=*/false);
+  sub->add_option(
+      "--contact-time", flags->contact_time_s,
+      "contact duration (s) used with --contact-duration instead of the Hertz estimate");
+  auto* json = sub->add_flag("--json", flags->json, "JSON on stdout");
+  auto* csv = sub->add_flag("--csv", flags->csv, "CSV on stdout");
+  json->excludes(csv);
+  sub->callback([flags]() { Run(*flags); });
+}
+
+}  // namespace bouncecal::cli

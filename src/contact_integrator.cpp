@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <sstream>
 
@@ -16,9 +17,6 @@ namespace {
 namespace odeint = boost::numeric::odeint;
 
 constexpr int kMaxLawState = 7;
-// A switch is crossed on the dense output once the remaining gap is below this (contact
-// times): the state error of the crossing is O(gap^2 / step), far below any tolerance.
-constexpr double kBridgeGap = 1e-10;
 // Event times are located to this relative precision (in units of the contact time).
 constexpr double kEventTolerance = 1e-14;
 
@@ -77,11 +75,15 @@ class ScaledContact {
     return ph;
   }
 
-  // The law's force, extended continuously past delta = 0 by F(0, delta') so that the dense
-  // output around the end event stays smooth.
+  // The law's force on the current branch (ContactLaw::ForceOnBranch: every trial point of a
+  // step stays on the branch the step started on), extended continuously past delta = 0 by
+  // F(0, delta') so that the dense output around the end event stays smooth.
   double Force(const Phys& ph) const {
-    return law_.Force(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data());
+    return law_.ForceOnBranch(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data(),
+                              positive_branch_);
   }
+  void SetBranch(bool positive) { positive_branch_ = positive; }
+  bool positive_branch() const { return positive_branch_; }
   double Switch(const Phys& ph) const {
     return law_.SwitchFunction(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data());
   }
@@ -134,6 +136,7 @@ class ScaledContact {
   Scales sc_;
   int n_state_;
   size_t s0_;
+  bool positive_branch_ = true;
 };
 
 // Root of a continuous g on [lo, hi] with g(lo), g(hi) of opposite signs (or g(hi) == 0):
@@ -197,7 +200,7 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
     sc.state[i] = (std::isfinite(s) && s > 0.0) ? s : 1.0;
   }
 
-  const ScaledContact<N> sys(law, p, body, g, plate, sc, n_state);
+  ScaledContact<N> sys(law, p, body, g, plate, sc, n_state);
   State x{};
   x[1] = 1.0;
   for (int i = 0; i < n_state; ++i) x[sys.StateOffset() + i] = s0[i] / sc.state[i];
@@ -211,16 +214,11 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
 
   double t = 0.0;
   double dt = 1e-3;
-  double switch_sign = sys.Switch(sys.Unscale(x)) >= 0.0 ? 1.0 : -1.0;
+  sys.SetBranch(sys.Switch(sys.Unscale(x)) > 0.0);
   bool was_loaded = false;   // F > 0 seen (for the F = 0 end rule)
   bool force_rising = true;  // dF/dt > 0 at the start of the current step
   State x_new{}, f_new{}, xd{};
 
-  auto dense = [&](double tau, double t0, double t1, const State& x0, const State& f0,
-                   const State& x1, const State& f1) {
-    ctrl.stepper().calc_state(tau, xd, x0, f0, t0, x1, f1, t1);
-    return sys.Unscale(xd);
-  };
   auto finish = [&](const State& xe, double te) {
     const Phys ph = sys.Unscale(xe);
     run.contact_s = te * sc.time_s;
@@ -246,11 +244,10 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
     ++run.steps;
     double t1 = t;
     const double dt_try = dt;
-    if (ctrl.try_step(sys, x, f, t1, x_new, f_new, dt) == odeint::fail) continue;
+    if (ctrl.try_step(std::ref(sys), x, f, t1, x_new, f_new, dt) == odeint::fail) continue;
     if (!AllFinite(x_new) || !AllFinite(f_new)) {
       // Non-finite force at a stage (e.g. a law evaluated out of its domain): smaller step.
       dt = 0.25 * dt_try;
-      t1 = t;
       if (dt < 1e-15) {
         finish(x, t);
         run.end = ContactRun::End::kStepLimit;
@@ -262,100 +259,94 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
       continue;
     }
     const double tol_tau = kEventTolerance * std::max(1.0, t1);
+    // Dense output of the accepted step [t, t1] (dopri5's 4th-order continuous extension).
+    auto dense = [&](double tau) {
+      ctrl.stepper().calc_state(tau, xd, x, f, t, x_new, f_new, t1);
+      return sys.Unscale(xd);
+    };
 
-    // 1. Switch events: never step over one (see header).
-    const double s_new = sys.Switch(sys.Unscale(x_new)) >= 0.0 ? 1.0 : -1.0;
-    if (s_new != switch_sign) {
-      auto gs = [&](double tau) {
-        return sys.Switch(dense(tau, t, t1, x, f, x_new, f_new)) * switch_sign;
-      };
-      const double g0 = sys.Switch(sys.Unscale(x)) * switch_sign;
-      const double g1 = sys.Switch(sys.Unscale(x_new)) * switch_sign;
-      const double ts = g0 > 0.0 && g1 < 0.0 ? LocateRoot(gs, t, t1, g0, g1, tol_tau)
-                        : g0 > 0.0           ? t1
-                                             : t;
-      const double gap = ts - t;
-      if (gap > kBridgeGap) {
-        dt = 0.999 * gap;  // retry up to just before the switch, all stages on the old branch
-        continue;
+    // 1. Branch switch: the step ran on the old branch continued past the switch, so the
+    // dense output is smooth; locate the sign change and end the step window there.
+    const double sign = sys.positive_branch() ? 1.0 : -1.0;
+    double t_w = t1;  // end of the window of this step that is valid
+    bool switched = false;
+    {
+      const double g1 = sys.Switch(sys.Unscale(x_new)) * sign;
+      if (!(g1 > 0.0)) {
+        const double g0 = sys.Switch(sys.Unscale(x)) * sign;
+        auto gs = [&](double tau) { return sys.Switch(dense(tau)) * sign; };
+        t_w = g0 > 0.0 ? LocateRoot(gs, t, t1, g0, g1, tol_tau) : t;
+        switched = true;
       }
-      // Cross the tiny gap on the dense output and restart on the new branch.
-      ctrl.stepper().calc_state(ts, xd, x, f, t, x_new, f_new, t1);
-      x = xd;
-      t = ts;
-      sys(x, f, t);
-      switch_sign = s_new;
-      ++run.switches;
-      dt = std::max(dt, 1e-6);
-      continue;
+    }
+    State x_w = x_new;
+    if (t_w < t1) {
+      dense(t_w);
+      x_w = xd;
     }
 
-    // 2. Contact end: delta returns to 0 (or F to 0 for kForceZero laws).
-    const Phys p1 = sys.Unscale(x_new);
-    const double f1 = sys.Force(p1);
+    // 2. Contact end within the window: delta returns to 0 (or F to 0 for kForceZero laws).
+    const Phys pw = sys.Unscale(x_w);
+    const double fw = sys.Force(pw);
     double t_end = -1.0;
-    if (p1.delta <= 0.0 && t1 > 0.0) {
+    if (pw.delta <= 0.0 && t_w > 0.0) {
       const Phys p0 = sys.Unscale(x);
-      if (p0.delta > 0.0) {
-        auto gd = [&](double tau) { return dense(tau, t, t1, x, f, x_new, f_new).delta; };
-        t_end = LocateRoot(gd, t, t1, p0.delta, p1.delta, tol_tau);
-      } else {
-        t_end = t1;  // cannot happen after the first step; kept for robustness
-      }
+      auto gd = [&](double tau) { return dense(tau).delta; };
+      t_end = p0.delta > 0.0 ? LocateRoot(gd, t, t_w, p0.delta, pw.delta, tol_tau) : t_w;
     }
-    if (force_zero_end && was_loaded && f1 <= 0.0) {
+    if (force_zero_end && was_loaded && fw <= 0.0) {
       const double f0 = sys.Force(sys.Unscale(x));
-      auto gf = [&](double tau) { return sys.Force(dense(tau, t, t1, x, f, x_new, f_new)); };
-      const double tf = f0 > 0.0 ? LocateRoot(gf, t, t1, f0, f1, tol_tau) : t;
+      auto gf = [&](double tau) { return sys.Force(dense(tau)); };
+      const double tf = f0 > 0.0 ? LocateRoot(gf, t, t_w, f0, fw, tol_tau) : t;
       if (t_end < 0.0 || tf < t_end) t_end = tf;
     }
-    if (f1 > 0.0) was_loaded = true;
+    if (fw > 0.0) was_loaded = true;
 
-    // Peaks over [t, min(t1, t_end)].
-    const double t_hi = t_end >= 0.0 ? t_end : t1;
-    State x_hi = x_new;
-    if (t_end >= 0.0) ctrl.stepper().calc_state(t_end, x_hi, x, f, t, x_new, f_new, t1);
+    // Peaks over [t, t_hi].
+    const double t_hi = t_end >= 0.0 ? t_end : t_w;
+    State x_hi = x_w;
+    if (t_hi < t_w) {
+      dense(t_hi);
+      x_hi = xd;
+    }
     {
       const Phys a = sys.Unscale(x);
       const Phys b = sys.Unscale(x_hi);
       const double fb = sys.Force(b);
       run.peak_overlap_m = std::max(run.peak_overlap_m, b.delta);
       run.peak_force_n = std::max(run.peak_force_n, fb);
-      // Force maximum inside this step: F rising at its start, falling at its end.
+      if (a.delta_dot > 0.0 && b.delta_dot <= 0.0) {
+        auto gv = [&](double tau) { return dense(tau).delta_dot; };
+        const Phys pm = dense(LocateRoot(gv, t, t_hi, a.delta_dot, b.delta_dot, tol_tau));
+        run.peak_overlap_m = std::max(run.peak_overlap_m, pm.delta);
+        run.peak_force_n = std::max(run.peak_force_n, sys.Force(pm));
+      }
+      // Force maximum inside the window: F rising at its start, falling at its end.
       const double h_step = t_hi - t;
-      const bool rising_end =
-          h_step > 0.0 && fb > sys.Force(dense(t_hi - 1e-6 * h_step, t, t1, x, f, x_new, f_new));
+      const bool rising_end = h_step > 0.0 && fb > sys.Force(dense(t_hi - 1e-6 * h_step));
       if (force_rising && !rising_end && h_step > 0.0) {
         double lo = t, hi = t_hi;  // golden-section search for the maximum of F
         constexpr double kInvPhi = 0.6180339887498949;
         double c1 = hi - kInvPhi * (hi - lo), c2 = lo + kInvPhi * (hi - lo);
-        double f1c = sys.Force(dense(c1, t, t1, x, f, x_new, f_new));
-        double f2c = sys.Force(dense(c2, t, t1, x, f, x_new, f_new));
+        double f1c = sys.Force(dense(c1)), f2c = sys.Force(dense(c2));
         for (int i = 0; i < 60 && hi - lo > tol_tau; ++i) {
           if (f1c < f2c) {
             lo = c1;
             c1 = c2;
             f1c = f2c;
             c2 = lo + kInvPhi * (hi - lo);
-            f2c = sys.Force(dense(c2, t, t1, x, f, x_new, f_new));
+            f2c = sys.Force(dense(c2));
           } else {
             hi = c2;
             c2 = c1;
             f2c = f1c;
             c1 = hi - kInvPhi * (hi - lo);
-            f1c = sys.Force(dense(c1, t, t1, x, f, x_new, f_new));
+            f1c = sys.Force(dense(c1));
           }
         }
         run.peak_force_n = std::max(run.peak_force_n, std::max(f1c, f2c));
       }
       force_rising = rising_end;
-      if (a.delta_dot > 0.0 && b.delta_dot <= 0.0) {
-        auto gv = [&](double tau) { return dense(tau, t, t1, x, f, x_new, f_new).delta_dot; };
-        const double tm = LocateRoot(gv, t, t_hi, a.delta_dot, b.delta_dot, tol_tau);
-        const Phys pm = dense(tm, t, t1, x, f, x_new, f_new);
-        run.peak_overlap_m = std::max(run.peak_overlap_m, pm.delta);
-        run.peak_force_n = std::max(run.peak_force_n, sys.Force(pm));
-      }
     }
 
     if (t_end >= 0.0) {
@@ -365,9 +356,16 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
       return run;
     }
 
-    x = x_new;
-    f = f_new;
-    t = t1;
+    x = x_w;
+    t = t_w;
+    if (switched) {
+      // Restart the integrator on the other branch at the located switch.
+      sys.SetBranch(!sys.positive_branch());
+      sys(x, f, t);
+      ++run.switches;
+    } else {
+      f = f_new;
+    }
 
     // 3. Stuck: the energy left cannot send the ball off faster than stuck_speed, or the
     // contact lasts far longer than any rebound would.

@@ -11,11 +11,12 @@
 // dopri5 dense output (calc_state) used to LOCATE events inside an accepted step:
 //   - the contact end (delta = 0, or F = 0 for laws whose EndRule() is kForceZero),
 //   - sign changes of the law's SwitchFunction (Walton-Braun's loading -> unloading branch).
-// A switch is never stepped over: a step that crosses it is discarded and retried up to just
-// before the located switch (the retried step's stages all lie on the old branch), until the
-// remaining gap is below 1e-10 contact times; the state is then carried across the gap on the
-// dense output and the integrator restarts on the new branch. The end event is continuous
-// (the force is extended past delta = 0 by F(0, delta')), so it is located directly.
+// A switch is never stepped over: every trial point of a step is evaluated on the branch the
+// step started on (ContactLaw::ForceOnBranch continues that branch smoothly past the switch),
+// so the step and its dense output stay smooth; the sign change is located on the dense
+// output (Illinois/bisection, 1e-14 relative in time), the step is cut there and the
+// integrator restarts on the other branch. The end event is continuous (the force is
+// extended past delta = 0 by F(0, delta')), so it is located the same way.
 // Variables are scaled to the contact's natural units before integration: time by a
 // contact-time estimate t_c (closed form if the law has one, else from the elastic energy),
 // velocity by v_in, overlap by v_in t_c, energy by m v_in^2 / 2; tolerances apply to these.

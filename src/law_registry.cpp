@@ -16,6 +16,14 @@ std::unique_ptr<LawBase> MakeLinearDashpot(const LawSpec&, const Scene&);
 std::unique_ptr<LawBase> MakeLinearDashpotForceZero(const LawSpec&, const Scene&);
 std::unique_ptr<LawBase> MakeWaltonBraun(const LawSpec&, const Scene&);
 std::unique_ptr<LawBase> MakeWaltonBraunHysteretic(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeHertzTsuji(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeHertzViscoelastic(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeHuntCrossley(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeHuntCrossleyHC(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeHuntCrossleyLN(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeHuntCrossleyFlores(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeJiangLiu(const LawSpec&, const Scene&);
+std::unique_ptr<LawBase> MakeExpression(const LawSpec&, const Scene&);
 }  // namespace laws
 
 namespace {
@@ -48,6 +56,21 @@ const LawRow kLaws[] = {
      laws::MakeWaltonBraun},
     {"walton-braun-hysteretic", "Walton-Braun hysteresis: load k1, unload k2 with plastic offset",
      laws::MakeWaltonBraunHysteretic},
+    {"hertz-tsuji", "Hertz + viscous damping d^1/4 (Tsuji 1992), speed-independent e",
+     laws::MakeHertzTsuji},
+    {"hertz-viscoelastic", "viscoelastic Hertz (Brilliantov 1996 / Kuwabara-Kono), e falls with v",
+     laws::MakeHertzViscoelastic},
+    {"hunt-crossley", "Hunt-Crossley k d^n (1 + alpha d'), alpha given", laws::MakeHuntCrossley},
+    {"hunt-crossley-hc", "Hunt-Crossley with alpha = 3(1-e)/(2 v0) from target e, v0",
+     laws::MakeHuntCrossleyHC},
+    {"hunt-crossley-ln", "Hunt-Crossley with Lankarani-Nikravesh alpha = 3(1-e^2)/(4 v0)",
+     laws::MakeHuntCrossleyLN},
+    {"hunt-crossley-flores", "Hunt-Crossley with Flores alpha = 8(1-e)/(5 e v0)",
+     laws::MakeHuntCrossleyFlores},
+    {"jiang-liu", "Jiang-Liu thermodynamic law (seed 000), relaxation energy w_r, normal only",
+     laws::MakeJiangLiu},
+    {"expression", "user-defined force from a muParser expression in d, v and named parameters",
+     laws::MakeExpression},
 };
 
 const LawRow* FindRow(const std::string& name) {

@@ -63,7 +63,7 @@ Rng Stream(std::uint64_t seed, std::uint64_t purpose, std::uint64_t index = 0) {
   Rng mix(seed ^ (purpose * 0xD1B54A32D192ED03ULL) ^ (index * 0x8CB92BA72F3D8DD7ULL));
   return Rng(mix.Next());
 }
-enum Purpose : std::uint64_t { kNoise = 1, kHum = 2, kDistractor = 3 };
+enum Purpose : std::uint64_t { kNoise = 1, kHum = 2, kDistractor = 3, kModeSpread = 4 };
 
 bool Finite(double v) { return std::isfinite(v); }
 
@@ -460,6 +460,10 @@ bool RenderOptions::IsValid(std::string* error) const {
       return fail("channel " + std::to_string(c) + " delay_s = " + Num(channels[c].delay_s) +
                   " (expected 0 <= delay < 1 s)");
     }
+    if (!(channels[c].mode_spread_db >= 0.0 && channels[c].mode_spread_db <= 40.0)) {
+      return fail("channel " + std::to_string(c) +
+                  " mode_spread_db = " + Num(channels[c].mode_spread_db) + " (expected 0..40 dB)");
+    }
   }
   for (const auto* list : {&plate_modes, &ball_modes}) {
     for (const Mode& m : *list) {
@@ -497,6 +501,12 @@ bool RenderOptions::IsValid(std::string* error) const {
   }
   if (clip_level && !(*clip_level > 0.0 && *clip_level <= 1.0)) {
     return fail("clip_level = " + Num(*clip_level) + " (expected 0 < level <= 1)");
+  }
+  for (const Echo& e : echoes) {
+    if (!(e.delay_s > 0.0 && e.delay_s < 1.0 && e.gain >= 0.0 && e.gain <= 1.0)) {
+      return fail("echo {" + Num(e.delay_s) + " s, gain " + Num(e.gain) +
+                  "} (expected 0 < delay < 1 s, 0 <= gain <= 1)");
+    }
   }
   if (!(latency_s >= 0.0 && latency_s < 1.0)) {
     return fail("latency_s = " + Num(latency_s) + " (expected 0 <= latency < 1 s)");
@@ -563,11 +573,21 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
     std::vector<Event> events;
     for (const auto& drop : drops) {
       for (const TruthImpact& i : drop) {
-        events.push_back(Event{i.time_s + options.latency_s + options.channels[c].delay_s,
-                               i.contact_s, strength(i)});
+        const double onset = i.time_s + options.latency_s + options.channels[c].delay_s;
+        events.push_back(Event{onset, i.contact_s, strength(i)});
+        for (const Echo& echo : options.echoes) {
+          events.push_back(Event{onset + echo.delay_s, i.contact_s, strength(i) * echo.gain});
+        }
       }
     }
-    RenderEvents(events, modes, options.click_gain, rate, &clean[c]);
+    std::vector<Mode> channel_modes = modes;
+    if (options.channels[c].mode_spread_db > 0.0) {
+      Rng rng = Stream(options.seed, kModeSpread, c);
+      for (Mode& m : channel_modes) {
+        m.gain *= std::pow(10.0, rng.Normal() * options.channels[c].mode_spread_db / 20.0);
+      }
+    }
+    RenderEvents(events, channel_modes, options.click_gain, rate, &clean[c]);
   }
   double unit_peak = 0.0;
   for (std::size_t c = 0; c < nch; ++c) {
@@ -720,7 +740,7 @@ SynthSpec SynthPreset(const std::string& name) {
     s.render.tail_s = 2.0;
     s.drops = {SynthDrop{1.5, std::nullopt}};
     if (name == "two-drops") {
-      s.render.channels = {ChannelSpec{1.0, 0.0}, ChannelSpec{0.6, 2.5e-4}};
+      s.render.channels = {ChannelSpec{1.0, 0.0, 0.0}, ChannelSpec{0.6, 2.5e-4, 4.0}};
       s.render.distractors = 4;
       s.render.distractor_db = -26.0;
       s.render.seed = 2;
@@ -810,6 +830,7 @@ SynthSpec SynthPreset(const std::string& name) {
     s.render.hum_hz = 50.0;
     s.render.hum_db = -30.0;
     s.render.clip_level = 0.25;
+    s.render.echoes = {Echo{6.0e-3, 0.3}};  // the table edge / a wall near the phone
     s.render.distractors = 6;
     s.render.distractor_db = -20.0;
     s.render.latency_s = 4e-4;
@@ -882,8 +903,13 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
   j["truth_options"] = truth_opts;
   json render;
   json chans = json::array();
-  for (const ChannelSpec& c : ro.channels)
-    chans.push_back({{"gain", c.gain}, {"delay_s", c.delay_s}});
+  for (const ChannelSpec& c : ro.channels) {
+    chans.push_back(
+        {{"gain", c.gain}, {"delay_s", c.delay_s}, {"mode_spread_db", c.mode_spread_db}});
+  }
+  json echoes = json::array();
+  for (const Echo& e : ro.echoes) echoes.push_back({{"delay_s", e.delay_s}, {"gain", e.gain}});
+  render["echoes"] = echoes;
   render["channels"] = chans;
   render["plate_modes"] = ModesJson(ro.plate_modes);
   render["ball_modes"] = ModesJson(ro.ball_modes);

@@ -107,6 +107,16 @@ std::vector<std::string> PlatePresetNames();
 struct ChannelSpec {
   double gain = 1.0;
   double delay_s = 0.0;  // extra arrival delay of this channel (>= 0)
+  // Microphones at different places hear the modes in different proportions: each mode's gain
+  // in this channel is scaled by 10^(N(0,1) * mode_spread_db / 20), drawn from the seed.
+  double mode_spread_db = 0.0;
+};
+
+// A reflection (wall, floor, table edge): a delayed, scaled copy of every impact's sound.
+// It is heard as a second, weaker "impact" delay_s after the real one.
+struct Echo {
+  double delay_s = 0.005;
+  double gain = 0.3;
 };
 
 enum class NoiseColor { kWhite, kPink };
@@ -129,6 +139,7 @@ struct RenderOptions {
   int distractors = 0;               // clicks at random times with another spectrum
   double distractor_db = -20.0;      // their amplitude relative to peak_level (max)
   std::optional<double> clip_level;  // hard clip at +-clip_level (absolute)
+  std::vector<Echo> echoes;          // reflections (none by default)
   double latency_s = 0.0;            // propagation latency added to every onset
   double tail_s = 1.5;               // recording continues after the last onset
   double duration_s = 0.0;           // 0 = last onset + tail_s

@@ -65,12 +65,16 @@ struct LawSetup {
   std::vector<double> start;    // full parameter vector (start and held values)
   std::vector<int> free;        // indices into start of the free parameters
   std::vector<double> typical;  // magnitude per full index, for steps and scaling
-  bool has_gradient = false;    // RestitutionGradient works
-  bool has_closed_e = false;    // Restitution works
+  // Ceres sees each free law parameter scaled by its typical magnitude (x = scale * u), so
+  // stiffnesses of 1e7 and dimensionless dampings of 0.4 give a well-conditioned J^T J (and a
+  // covariance Ceres can compute).
+  std::vector<double> scale;
+  bool has_gradient = false;  // RestitutionGradient works
+  bool has_closed_e = false;  // Restitution works
 
   std::vector<double> Full(const double* const* free_values) const {
     std::vector<double> p = start;
-    for (size_t i = 0; i < free.size(); ++i) p[free[i]] = *free_values[i];
+    for (size_t i = 0; i < free.size(); ++i) p[free[i]] = scale[i] * *free_values[i];
     return p;
   }
 };
@@ -262,12 +266,26 @@ class RecordingModel {
         dw[j] = (e + u * de_du) * du[j] + (j < nf ? u * de_dp[setup_.free[j]] : 0.0);
       }
       const double dT = flight_.FlightTimeDerivative(w);
-      const double hw = 1e-6 * std::max(w, 1e-9);
-      const double dA =
-          (flight_.ArrivalSpeed(w + hw) - flight_.ArrivalSpeed(std::max(w - hw, 0.0))) /
-          (w + hw - std::max(w - hw, 0.0));
+      const double dA = flight_.ArrivalSpeedDerivative(w);
+      // The simulator's intervals include the contact duration t_c(p, v_in) (closed form
+      // where the law has one; differenced, as closed forms are noise-free).
+      std::vector<double> dtc(nf + 1, 0.0);
+      if (auto tc = setup_.law->ContactTime(p, setup_.body, u)) {
+        auto th = setup_.law->ContactTime(p, setup_.body, u + hu);
+        auto tl = setup_.law->ContactTime(p, setup_.body, u - hu);
+        const double dtc_du = th && tl ? (*th - *tl) / (2 * hu) : 0.0;
+        for (size_t j = 0; j <= nf; ++j) {
+          dtc[j] = dtc_du * du[j];
+          if (j < nf) {
+            auto f = [&](const std::vector<double>& q) {
+              return setup_.law->ContactTime(q, setup_.body, u).value_or(*tc);
+            };
+            dtc[j] += ParamDerivative(setup_, p, setup_.free[j], 1e-6, f);
+          }
+        }
+      }
       for (size_t j = 0; j <= nf; ++j) {
-        ds[j] += dT * dw[j];
+        ds[j] += dT * dw[j] + dtc[j];
         du[j] = dA * dw[j];
       }
       if (!std::isfinite(dT) || !std::isfinite(dA)) return false;
@@ -303,7 +321,8 @@ class ImpactTimeCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     std::vector<double> p = model_->setup().start;
-    for (size_t j = 0; j < nfree_; ++j) p[model_->setup().free[j]] = parameters[j][0];
+    const LawSetup& su = model_->setup();
+    for (size_t j = 0; j < nfree_; ++j) p[su.free[j]] = su.scale[j] * parameters[j][0];
     const double v0 = fixed_v0_ ? *fixed_v0_ : parameters[nfree_][0];
     const double t0 = parameters[nfree_ + (fixed_v0_ ? 0 : 1)][0];
     bool want_law_jac = false;
@@ -319,7 +338,7 @@ class ImpactTimeCost : public ceres::CostFunction {
     if (jacobians) {
       const size_t row = static_cast<size_t>(k_) * (nfree_ + 1);
       for (size_t j = 0; j < nfree_; ++j) {
-        if (jacobians[j]) jacobians[j][0] = s->jac[row + j] / sigma;
+        if (jacobians[j]) jacobians[j][0] = s->jac[row + j] / sigma * su.scale[j];
       }
       size_t b = nfree_;
       if (!fixed_v0_) {
@@ -376,7 +395,7 @@ class RestitutionCost : public ceres::CostFunction {
         residuals[0] = (e - pt_.e) / pt_.sigma;
         if (jacobians) {
           for (size_t j = 0; j < setup_.free.size(); ++j) {
-            if (jacobians[j]) jacobians[j][0] = de[setup_.free[j]] / pt_.sigma;
+            if (jacobians[j]) jacobians[j][0] = de[setup_.free[j]] / pt_.sigma * setup_.scale[j];
           }
         }
         return std::isfinite(residuals[0]);
@@ -390,7 +409,8 @@ class RestitutionCost : public ceres::CostFunction {
         const double step = setup_.has_closed_e ? 1e-6 : rel_step_;
         for (size_t j = 0; j < setup_.free.size(); ++j) {
           if (!jacobians[j]) continue;
-          jacobians[j][0] = ParamDerivative(setup_, p, setup_.free[j], step, f) / pt_.sigma;
+          jacobians[j][0] =
+              ParamDerivative(setup_, p, setup_.free[j], step, f) / pt_.sigma * setup_.scale[j];
           if (!std::isfinite(jacobians[j][0])) return false;
         }
       }
@@ -864,7 +884,10 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
 
   // Parameter blocks and counting.
   const size_t nfree = setup.free.size();
-  for (int i : setup.free) fp.law_values.push_back(setup.start[static_cast<size_t>(i)]);
+  for (int i : setup.free) {
+    setup.scale.push_back(setup.typical[static_cast<size_t>(i)]);
+    fp.law_values.push_back(setup.start[static_cast<size_t>(i)] / setup.scale.back());
+  }
   ceres::Problem::Options popt;
   ceres::Problem problem(popt);
   auto make_loss = [&]() -> ceres::LossFunction* {
@@ -949,8 +972,11 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   }
   for (size_t j = 0; j < nfree; ++j) {
     const auto& sp = specs[static_cast<size_t>(setup.free[j])];
-    if (std::isfinite(sp.lower)) problem.SetParameterLowerBound(&fp.law_values[j], 0, sp.lower);
-    if (std::isfinite(sp.upper)) problem.SetParameterUpperBound(&fp.law_values[j], 0, sp.upper);
+    const double sc = setup.scale[j];
+    if (std::isfinite(sp.lower))
+      problem.SetParameterLowerBound(&fp.law_values[j], 0, sp.lower / sc);
+    if (std::isfinite(sp.upper))
+      problem.SetParameterUpperBound(&fp.law_values[j], 0, sp.upper / sc);
   }
   const int num_free = static_cast<int>(nfree) + num_nuisance;
   if (num_residuals <= num_free) {
@@ -1007,7 +1033,9 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   c.residual_unit = trajectory ? "s" : "1";
   auto current_params = [&]() {
     std::vector<double> p = setup.start;
-    for (size_t j = 0; j < nfree; ++j) p[static_cast<size_t>(setup.free[j])] = fp.law_values[j];
+    for (size_t j = 0; j < nfree; ++j) {
+      p[static_cast<size_t>(setup.free[j])] = setup.scale[j] * fp.law_values[j];
+    }
     return p;
   };
   if (!summary.IsSolutionUsable()) {
@@ -1096,7 +1124,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
       bool remaining = false;
       for (size_t j = 0; j < nfree; ++j) {
         if (undetermined[static_cast<size_t>(setup.free[j])]) {
-          fp.law_values[j] = setup.start[static_cast<size_t>(setup.free[j])];
+          fp.law_values[j] = setup.start[static_cast<size_t>(setup.free[j])] / setup.scale[j];
           problem.SetParameterBlockConstant(&fp.law_values[j]);
         } else {
           remaining = true;
@@ -1205,7 +1233,8 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
           }
           double v = 0.0;
           cov.GetCovarianceBlock(&fp.law_values[a], &fp.law_values[b], &v);
-          law_cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = v * scale * scale;
+          law_cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) =
+              v * scale * scale * setup.scale[a] * setup.scale[b];
         }
       }
       for (size_t r = 0; r < fp.v0.size(); ++r) {

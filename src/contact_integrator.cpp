@@ -216,7 +216,8 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
   double dt = 1e-3;
   sys.SetBranch(sys.Switch(sys.Unscale(x)) > 0.0);
   bool was_loaded = false;   // F > 0 seen (for the F = 0 end rule)
-  bool force_rising = true;  // dF/dt > 0 at the start of the current step
+  bool force_rising = true;  // the first force maximum is still ahead
+  int stalled_switches = 0;  // consecutive switches without progress in time
   State x_new{}, f_new{}, xd{};
 
   auto finish = [&](const State& xe, double te) {
@@ -287,7 +288,7 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
 
     // 2. Contact end within the window: delta returns to 0 (or F to 0 for kForceZero laws).
     const Phys pw = sys.Unscale(x_w);
-    const double fw = sys.Force(pw);
+    const double fw = force_zero_end ? sys.Force(pw) : 0.0;
     double t_end = -1.0;
     if (pw.delta <= 0.0 && t_w > 0.0) {
       const Phys p0 = sys.Unscale(x);
@@ -321,9 +322,11 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
         run.peak_overlap_m = std::max(run.peak_overlap_m, pm.delta);
         run.peak_force_n = std::max(run.peak_force_n, sys.Force(pm));
       }
-      // Force maximum inside the window: F rising at its start, falling at its end.
+      // Force maximum inside the window: F rising at its start, falling at its end (searched
+      // until the first maximum is found; later local maxima are sampled at step ends).
       const double h_step = t_hi - t;
-      const bool rising_end = h_step > 0.0 && fb > sys.Force(dense(t_hi - 1e-6 * h_step));
+      const bool rising_end =
+          !force_rising || (h_step > 0.0 && fb > sys.Force(dense(t_hi - 1e-6 * h_step)));
       if (force_rising && !rising_end && h_step > 0.0) {
         double lo = t, hi = t_hi;  // golden-section search for the maximum of F
         constexpr double kInvPhi = 0.6180339887498949;
@@ -345,39 +348,84 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
           }
         }
         run.peak_force_n = std::max(run.peak_force_n, std::max(f1c, f2c));
+        force_rising = false;
       }
-      force_rising = rising_end;
     }
 
     if (t_end >= 0.0) {
+      // The dense output is one order below the step: recompute the end state with one dopri5
+      // step of exactly t_end - t (valid: no event inside), then a Newton correction in time
+      // for delta = 0 (end rule kOverlapZero).
+      if (t_end > t) {
+        ctrl.stepper().do_step(std::ref(sys), x, f, t, x_hi, f_new, t_end - t);
+        const Phys pe = sys.Unscale(x_hi);
+        if (!force_zero_end && pe.delta_dot < 0.0 && AllFinite(x_hi)) {
+          const double dtau = -(pe.delta / sc.length_m) / (pe.delta_dot / sc.speed_m_s);
+          if (std::abs(dtau) < 1e-3 * (t_end - t)) {
+            for (size_t i = 0; i < N; ++i) x_hi[i] += f_new[i] * dtau;
+            t_end += dtau;
+          }
+        }
+      }
       const Phys pe = finish(x_hi, t_end);
       run.v_out_m_s = std::max(0.0, -pe.yd);
       run.end = ContactRun::End::kSeparated;
       return run;
     }
 
-    x = x_w;
-    t = t_w;
+    const double t_before = t;
     if (switched) {
-      // Restart the integrator on the other branch at the located switch.
+      // Restart the integrator on the other branch at the located switch, from a state
+      // recomputed by one step of exactly t_w - t on the old branch (continued past the switch,
+      // so the step is smooth).
+      if (t_w > t) {
+        const State x_dense = x_w;
+        ctrl.stepper().do_step(std::ref(sys), x, f, t, x_w, f_new, t_w - t);
+        if (!AllFinite(x_w)) x_w = x_dense;
+      }
+      x = x_w;
+      t = t_w;
+      stalled_switches = t_w - t_before < 1e-12 ? stalled_switches + 1 : 0;
       sys.SetBranch(!sys.positive_branch());
       sys(x, f, t);
       ++run.switches;
     } else {
+      x = x_w;
+      t = t_w;
       f = f_new;
+      stalled_switches = 0;
     }
 
     // 3. Stuck: the energy left cannot send the ball off faster than stuck_speed, or the
     // contact lasts far longer than any rebound would.
-    const Phys pc = sys.Unscale(x);
-    const double e_left =
-        sys.BallEnergy(pc) + sys.Elastic(pc) + sys.PlateEnergy(pc) + sys.Internal(pc);
-    const bool energy_gone = stuck_energy > 0.0 && e_left < stuck_energy && pc.delta > 0.0;
-    if (energy_gone || t > options.max_contact_time_factor) {
+    // Creeping: the ball moves slower than stuck_speed and its acceleration cannot change that
+    // within a contact time (overdamped: delta' never returns to 0). Cheap, every step.
+    const double v_stuck = options.stuck_speed_m_s / sc.speed_m_s;
+    const bool creeping = std::abs(x[1]) < v_stuck && std::abs(f[1]) < v_stuck;
+    // Sliding on the switch surface: repeated switches without progress (Walton-Braun's ball
+    // resting under gravity between its loading and unloading equilibria).
+    const bool sliding = stalled_switches >= 4;
+    // Energy: checked while the ball moves out, or once the contact outlasts 1.5 estimates.
+    bool energy_gone = false;
+    double e_left = 0.0;
+    if (stuck_energy > 0.0 && (x[1] <= 0.0 || t >= 1.5 || creeping || sliding)) {
+      const Phys pc = sys.Unscale(x);
+      e_left = sys.BallEnergy(pc) + sys.Elastic(pc) + sys.PlateEnergy(pc) + sys.Internal(pc);
+      energy_gone = e_left < stuck_energy && pc.delta > 0.0;
+    }
+    if (energy_gone || creeping || sliding || t > options.max_contact_time_factor) {
       finish(x, t);
       run.end = ContactRun::End::kStuck;
       std::ostringstream os;
-      if (energy_gone) {
+      if (sliding) {
+        os << "the ball rests in contact on the law's branch switch (repeated switches without "
+              "progress at t = "
+           << t * sc.time_s << " s into the contact)";
+      } else if (creeping) {
+        os << "the ball creeps slower than " << options.stuck_speed_m_s
+           << " m/s with negligible acceleration (overdamped; t = " << t * sc.time_s
+           << " s into the contact)";
+      } else if (energy_gone) {
         os << "the ball stays in contact: energy left " << e_left
            << " J cannot lift it off faster than " << options.stuck_speed_m_s
            << " m/s (t = " << t * sc.time_s << " s into the contact)";

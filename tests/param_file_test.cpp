@@ -1,0 +1,270 @@
+// Parameter file (schema bouncecal.params/1) and provenance: keys and types, null sigmas,
+// write/read round trip, atomic writing, refusal to overwrite inputs or existing files,
+// --force, missing directories, malformed files; SHA-256 against published test vectors.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "bouncecal/calibrate.hpp"
+#include "bouncecal/error.hpp"
+#include "bouncecal/law_registry.hpp"
+#include "bouncecal/param_file.hpp"
+#include "bouncecal/provenance.hpp"
+#include "bouncecal/simulator.hpp"
+
+namespace bouncecal {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device rd;
+    path_ = fs::temp_directory_path() / ("bouncecal_param_" + std::to_string(rd()));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+  size_t Count() const {
+    return static_cast<size_t>(std::distance(fs::directory_iterator(path_), {}));
+  }
+
+ private:
+  fs::path path_;
+};
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// A real (small) calibration: walton-braun gamma = 0.408 from 10 simulated impacts.
+const Calibration& SampleFit() {
+  static const Calibration c = [] {
+    Scene s;
+    s.law.parameters = {{"gamma", 0.408}};
+    auto law = CreateLaw(s.law, s);
+    s.limits.max_impacts = 10;
+    const Simulation sim = Simulate(s, *law, law->ParameterValues());
+    Sequence seq;
+    for (const auto& i : sim.impacts) seq.impacts.push_back({1.0 + i.time_s, 5e-6});
+    Scene start;
+    return Calibrate({{"drop.wav", seq}}, start, {});
+  }();
+  return c;
+}
+
+TEST(Provenance, Sha256MatchesPublishedVectors) {
+  // FIPS 180-2 examples.
+  EXPECT_EQ(Sha256OfString("abc"),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(Sha256OfString(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  TempDir dir;
+  WriteText(dir / "abc.txt", "abc");
+  EXPECT_EQ(Sha256OfFile(dir / "abc.txt"), Sha256OfString("abc"));
+  // Larger than one read buffer.
+  const std::string big(200000, 'x');
+  WriteText(dir / "big.bin", big);
+  EXPECT_EQ(Sha256OfFile(dir / "big.bin"), Sha256OfString(big));
+  try {
+    Sha256OfFile(dir / "missing.wav");
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInputMissing);
+    EXPECT_NE(std::string(e.what()).find("missing.wav"), std::string::npos);
+  }
+}
+
+TEST(Provenance, DatesAreIsoUtcAndVersionIsSet) {
+  EXPECT_EQ(IsoDateUtc(0), "1970-01-01T00:00:00Z");
+  EXPECT_EQ(IsoDateUtc(1700000000), "2023-11-14T22:13:20Z");
+  EXPECT_EQ(NowIsoDateUtc().size(), 20u);
+  EXPECT_EQ(BouncecalVersion(), BOUNCECAL_VERSION);
+  TempDir dir;
+  WriteText(dir / "a.wav", "abc");
+  const Provenance p = MakeProvenance({dir / "a.wav"});
+  ASSERT_EQ(p.inputs.size(), 1u);
+  EXPECT_EQ(p.inputs[0].sha256, Sha256OfString("abc"));
+}
+
+TEST(ParamFile, SchemaKeysAndTypes) {
+  const Calibration& c = SampleFit();
+  Provenance prov;
+  prov.inputs = {{"drop.wav", Sha256OfString("x")}};
+  prov.bouncecal_version = "9.9.9";
+  prov.date_utc = "2026-01-01T00:00:00Z";
+  const json j = ParamFileJson(c, prov, OptionsJson(CalibrationOptions{}));
+  EXPECT_EQ(j.at("schema"), "bouncecal.params/1");
+  EXPECT_EQ(j.at("law"), "walton-braun");
+  const json& gamma = j.at("parameters").at("gamma");
+  EXPECT_TRUE(gamma.at("value").is_number());
+  EXPECT_TRUE(gamma.at("sigma").is_number());
+  EXPECT_EQ(gamma.at("unit"), "1");
+  EXPECT_EQ(gamma.at("fixed"), false);
+  EXPECT_NEAR(gamma.at("value").get<double>(), 0.408, 1e-4);
+  const json& k = j.at("parameters").at("k");
+  EXPECT_EQ(k.at("fixed"), true);
+  EXPECT_TRUE(k.at("sigma").is_null());  // held: no sigma, never NaN
+  EXPECT_EQ(k.at("unit"), "N/m");
+  ASSERT_GE(j.at("e_of_v").size(), 2u);
+  for (const auto& pt : j.at("e_of_v")) {
+    EXPECT_TRUE(pt.at("v_m_s").is_number());
+    EXPECT_TRUE(pt.at("e").is_number());
+    EXPECT_TRUE(pt.at("sigma").is_number());
+  }
+  // Tabulated over the measured speed range.
+  EXPECT_NEAR(j["e_of_v"].front()["v_m_s"].get<double>(), c.v_min_m_s, 1e-12);
+  EXPECT_NEAR(j["e_of_v"].back()["v_m_s"].get<double>(), c.v_max_m_s, 1e-9);
+  const json& fit = j.at("fit");
+  for (const char* key : {"strategy", "rms_residual_s", "chi2_dof", "outcome", "iterations",
+                          "determined", "undetermined", "aic", "bic", "dof"}) {
+    EXPECT_TRUE(fit.contains(key)) << key;
+  }
+  EXPECT_EQ(fit.at("strategy"), "trajectory");
+  EXPECT_EQ(fit.at("outcome"), "converged");
+  EXPECT_EQ(fit.at("determined"), json::array({"gamma"}));
+  for (const char* key : {"ball", "surface", "environment", "drop", "effects", "law"}) {
+    EXPECT_TRUE(j.at("scene").contains(key)) << key;
+  }
+  EXPECT_NEAR(j["scene"]["ball"]["diameter_m"].get<double>(), 0.01, 1e-15);
+  EXPECT_EQ(j["scene"]["effects"]["drag"], "none");
+  const json& pv = j.at("provenance");
+  EXPECT_EQ(pv.at("inputs")[0].at("path"), "drop.wav");
+  EXPECT_EQ(pv.at("inputs")[0].at("sha256"), Sha256OfString("x"));
+  EXPECT_EQ(pv.at("bouncecal_version"), "9.9.9");
+  EXPECT_EQ(pv.at("date_utc"), "2026-01-01T00:00:00Z");
+  EXPECT_EQ(pv.at("options").at("strategy"), "trajectory");
+  EXPECT_EQ(j.at("recordings")[0].at("path"), "drop.wav");
+  EXPECT_TRUE(j.at("recordings")[0].at("time_origin_s").is_number());
+  // Restitution fits name their RMS in e.
+  Calibration r = c;
+  r.strategy = FitStrategy::kRestitution;
+  const json jr = ParamFileJson(r, prov, json::object());
+  EXPECT_TRUE(jr.at("fit").contains("rms_residual_e"));
+  EXPECT_FALSE(jr.at("fit").contains("rms_residual_s"));
+}
+
+TEST(ParamFile, WriteReadRoundTripFeedsCreateLaw) {
+  TempDir dir;
+  const Calibration& c = SampleFit();
+  const json j = ParamFileJson(c, MakeProvenance({}), OptionsJson({}));
+  WriteParamFile(dir / "params.json", j, {});
+  EXPECT_EQ(dir.Count(), 1u);  // no temporary left behind
+  const ParamFile p = ReadParamFile(dir / "params.json");
+  EXPECT_EQ(p.schema, kParamFileSchema);
+  EXPECT_EQ(p.law.name, "walton-braun");
+  EXPECT_EQ(p.outcome, "converged");
+  EXPECT_DOUBLE_EQ(p.law.parameters.at("gamma"), c.parameters[1].value);
+  EXPECT_TRUE(p.sigma.count("gamma"));
+  EXPECT_FALSE(p.sigma.count("k"));
+  Scene s;
+  auto law = CreateLaw(p.law, s);
+  EXPECT_DOUBLE_EQ(law->ParameterValues()[1], c.parameters[1].value);
+  EXPECT_EQ(ReadText(dir / "params.json").back(), '\n');
+}
+
+TEST(ParamFile, RefusesToOverwriteInputsOrExistingFilesWithoutForce) {
+  TempDir dir;
+  const json j = ParamFileJson(SampleFit(), MakeProvenance({}), json::object());
+  WriteText(dir / "drop.wav", "RIFF....");
+  // The output is one of the inputs: refused even with --force, input untouched.
+  for (bool force : {false, true}) {
+    try {
+      WriteParamFile(dir / "drop.wav", j, {.force = force, .inputs = {dir / "drop.wav"}});
+      ADD_FAILURE();
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kOutput);
+      EXPECT_NE(std::string(e.what()).find("input"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(ReadText(dir / "drop.wav"), "RIFF....");
+  }
+  // An existing output: refused without force, replaced with it.
+  WriteText(dir / "params.json", "old");
+  try {
+    WriteParamFile(dir / "params.json", j, {});
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutput);
+    EXPECT_NE(std::string(e.what()).find("--force"), std::string::npos);
+  }
+  EXPECT_EQ(ReadText(dir / "params.json"), "old");
+  WriteParamFile(dir / "params.json", j, {.force = true, .inputs = {}});
+  EXPECT_EQ(json::parse(ReadText(dir / "params.json")).at("schema"), kParamFileSchema);
+  EXPECT_EQ(dir.Count(), 2u);
+}
+
+TEST(ParamFile, MissingDirectoryIsAnOutputError) {
+  TempDir dir;
+  const std::string path = dir / "no/such/dir/params.json";
+  try {
+    WriteParamFile(path, json::object(), {});
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutput);
+    EXPECT_NE(std::string(e.what()).find("does not exist"), std::string::npos);
+  }
+  EXPECT_THROW(CheckOutputPath(path), Error);
+  EXPECT_EQ(dir.Count(), 0u);
+}
+
+TEST(ParamFile, MalformedFilesAreRejectedWithTheKey) {
+  TempDir dir;
+  auto expect_bad = [&](const std::string& text, const std::string& needle) {
+    WriteText(dir / "p.json", text);
+    try {
+      ReadParamFile(dir / "p.json");
+      ADD_FAILURE() << text;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kBadParameter) << e.what();
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("p.json"), std::string::npos) << e.what();
+    }
+  };
+  expect_bad("not json", "not a JSON object");
+  expect_bad("[1,2]", "not a JSON object");
+  expect_bad(R"({"law": "walton-braun"})", "schema");
+  expect_bad(R"({"schema": "bouncecal.params/2", "law": "x", "parameters": {}})",
+             "bouncecal.params/2");
+  expect_bad(R"({"schema": "bouncecal.params/1", "parameters": {}})", "law");
+  expect_bad(R"({"schema": "bouncecal.params/1", "law": "walton-braun"})", "parameters");
+  expect_bad(
+      R"({"schema": "bouncecal.params/1", "law": "walton-braun",
+          "parameters": {"gamma": {"value": "0.4"}}})",
+      "parameters.gamma.value");
+  try {
+    ReadParamFile(dir / "absent.json");
+    ADD_FAILURE();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInputMissing);
+  }
+}
+
+TEST(ParamFile, OptionsJsonRecordsEveryKnob) {
+  CalibrationOptions o;
+  o.strategy = FitStrategy::kRestitution;
+  o.free_parameters = {"k"};
+  o.derivatives = DerivativeMode::kNumeric;
+  o.rel_tolerance = 1e-7;
+  o.loss = RobustLoss::kCauchy;
+  const json j = OptionsJson(o);
+  EXPECT_EQ(j.at("strategy"), "restitution");
+  EXPECT_EQ(j.at("free_parameters"), json::array({"k"}));
+  EXPECT_EQ(j.at("derivatives"), "numeric");
+  EXPECT_DOUBLE_EQ(j.at("rel_tolerance").get<double>(), 1e-7);
+  EXPECT_EQ(j.at("loss"), "cauchy");
+  EXPECT_TRUE(j.contains("use_drop"));
+  EXPECT_TRUE(j.contains("max_iterations"));
+}
+
+}  // namespace
+}  // namespace bouncecal

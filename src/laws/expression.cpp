@@ -6,7 +6,7 @@
 // Parameters named "k" or starting with "k_" are stiffnesses (held by the fitter); all others
 // are damping parameters (fitted). The contact ends at d = 0. The force is whatever the
 // expression says (it may turn attractive). Elastic energy = the work of the rate-independent
-// part, integral_0^d F(x, 0) dx (16-point Gauss-Legendre). No closed forms.
+// part, integral_0^d F(x, 0) dx (16-point Gauss-Legendre in u = sqrt(x/d)). No closed forms.
 // Each law instance owns its parser (muParser is not thread-safe): one instance per thread,
 // as for every law (contact_law.hpp).
 #include <muParser.h>
@@ -81,13 +81,14 @@ class ExpressionLaw final : public LawBase {
   double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
                        const double*) const override {
     if (delta_m <= 0.0) return 0.0;
-    const double half = 0.5 * delta_m;
+    // x = d u^2 makes Hertz-type integrands (x^1.5 -> 2 d^2.5 u^4) polynomial in u.
     double sum = 0.0;
     for (int i = 0; i < 8; ++i) {
-      sum += kGaussW[i] *
-             (Eval(p, half * (1.0 - kGaussX[i]), 0.0) + Eval(p, half * (1.0 + kGaussX[i]), 0.0));
+      for (double u : {0.5 * (1.0 - kGaussX[i]), 0.5 * (1.0 + kGaussX[i])}) {
+        sum += kGaussW[i] * 0.5 * Eval(p, delta_m * u * u, 0.0) * 2.0 * delta_m * u;
+      }
     }
-    return half * sum;
+    return sum;
   }
 
  private:

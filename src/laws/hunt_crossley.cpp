@@ -8,10 +8,13 @@
 //   hunt-crossley-flores  k, n, e, v0: alpha = 8 (1 - e) / (5 e v0)     (Flores et al., Mech.
 //                                                                       Mach. Theory 46 (2011))
 // The variants set alpha from a target e at the impact speed v0; none reproduces e exactly
-// (PHYSICS.md §3: ~0.847 and ~0.789 for a target of 0.8), which tests/laws_test.cpp shows. The
-// force turns attractive when alpha delta' < -1; the contact therefore ends when F reaches 0
-// (kForceZero: at delta = 0, or earlier where 1 + alpha delta' = 0). No closed form for e:
-// e depends on (n, alpha v) only; the integrator computes it.
+// (PHYSICS.md §3: ~0.847 and ~0.789 for a target of 0.8), which tests/laws_test.cpp shows.
+// The force would turn attractive for alpha delta' < -1, but during unloading the force
+// vanishes as delta' -> -1/alpha, so the ball approaches that speed only asymptotically and
+// never crosses it: v_out < 1/alpha and F >= 0 throughout, the F = 0 and delta = 0 end rules
+// coincide, and the contact ends at delta = 0 (the factor is clipped at 0 only so that trial
+// points of an integrator step cannot produce attraction). No closed form for e: e depends
+// on (n, alpha v) only; the integrator computes it.
 #include <cmath>
 
 #include "laws/law_base.hpp"
@@ -79,8 +82,6 @@ class HuntCrossley final : public LawBase {
     }
     return "";
   }
-  ContactEnd EndRule() const override { return ContactEnd::kForceZero; }
-
   // The damping factor alpha (s/m) of this parameter vector.
   double Alpha(std::span<const double> p) const {
     if (variant_ == HcVariant::kAlphaGiven) return p[2];

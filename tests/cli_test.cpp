@@ -241,6 +241,36 @@ TEST_F(CliTest, AnalyzeJsonContract) {
   EXPECT_EQ(nlohmann::json::parse(sc.out)["scene"]["drag"], "quadratic");
 }
 
+TEST_F(CliTest, SceneFlagsReachTheAnalysis) {
+  const std::string good = Quote(P("good.wav"));
+  RunResult r = Run("analyze " + good +
+                    " --json --material glass --diameter 0.02 --buoyancy --drag linear --g 9.81");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  nlohmann::json s = nlohmann::json::parse(r.out)["scene"];
+  EXPECT_EQ(s["drag"], "linear");
+  EXPECT_EQ(s["buoyancy"], true);
+  EXPECT_EQ(s["ball"]["material"], "glass");
+  EXPECT_EQ(s["ball"]["density_kg_m3"], 2500.0);
+  EXPECT_EQ(s["ball"]["diameter_m"], 0.02);
+  EXPECT_NEAR(s["effective_gravity_m_s2"].get<double>(), 9.81 * (1 - 1.2 / 2500), 1e-12);
+  EXPECT_TRUE(s["terminal_speed_m_s"].is_number());
+  // --mass replaces the file's density; flags override the scene file.
+  r = Run("analyze " + good + " --json --scene " + Quote(P("good.toml")) +
+          " --mass 0.01 --impact-speed 1.5");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  s = nlohmann::json::parse(r.out)["scene"];
+  EXPECT_EQ(s["ball"]["mass_kg"], 0.01);
+  EXPECT_EQ(s["drag"], "quadratic");  // from the file
+  EXPECT_TRUE(s["drop_height_m"].is_null());
+  EXPECT_EQ(s["impact_speed_m_s"], 1.5);
+  // A fixed contact time turns the contact-duration effect on and is reported per bounce.
+  r = Run("analyze " + good + " --json --contact-time 0.0001");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["scene"]["contact_duration"], true);
+  EXPECT_EQ(j["bounces"][0]["contact_s"], 0.0001);
+}
+
 TEST_F(CliTest, AnalyzeCsvAndTable) {
   const RunResult js = Run("analyze " + Quote(P("good.wav")) + " --height 0.2 --json");
   ASSERT_EQ(js.exit_code, 0) << js.err;

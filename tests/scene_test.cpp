@@ -325,6 +325,30 @@ TEST(SceneTest, IsValidNamesKeyAndValue) {
   EXPECT_TRUE(Scene{}.IsValid(nullptr));
 }
 
+TEST(SceneTest, BundledSceneFilesAreValidAndRoundTrip) {
+  int count = 0;
+  for (const char* sub : {"data", "data/scenes"}) {
+    const std::filesystem::path dir = std::filesystem::path(BOUNCECAL_SOURCE_DIR) / sub;
+    if (!std::filesystem::is_directory(dir)) continue;
+    for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+      if (entry.path().extension() != ".toml") continue;
+      SCOPED_TRACE(entry.path().string());
+      const Scene s = LoadSceneFile(entry.path().string());
+      std::string err;
+      EXPECT_TRUE(s.IsValid(&err)) << err;
+      EXPECT_EQ(ParseScene(SceneToToml(s), s.source), s);
+      ++count;
+    }
+  }
+  EXPECT_GE(count, 4);
+  // The ping-pong example: mass given, density derived, drag and buoyancy on.
+  const Scene pp =
+      LoadSceneFile(std::string(BOUNCECAL_SOURCE_DIR) + "/data/scenes/pingpong-wood.toml");
+  EXPECT_EQ(pp.effects.drag, DragModel::kQuadratic);
+  EXPECT_NEAR(pp.ball.Density(), 0.0027 / (M_PI / 6 * 0.04 * 0.04 * 0.04), 1e-9);
+  EXPECT_LT(pp.EffectiveGravity(), 9.8 * 0.99);
+}
+
 TEST(SceneTest, DragModelNames) {
   for (DragModel m : {DragModel::kNone, DragModel::kLinear, DragModel::kQuadratic}) {
     DragModel back = DragModel::kNone;

@@ -271,6 +271,17 @@ TEST_F(CliTest, SceneFlagsReachTheAnalysis) {
   EXPECT_EQ(j["bounces"][0]["contact_s"], 0.0001);
 }
 
+TEST_F(CliTest, LawFlagsAreChecked) {
+  // --law/--set/--expression (scene_flags.cpp) as simulate uses them.
+  ExpectFailure("simulate --json --law linear-dashpot --set k=abc", 9, "k=abc");
+  ExpectFailure("simulate --json --law linear-dashpot --set =3", 9, "=3");
+  ExpectFailure("simulate --json --law linear-dashpot --set k", 9, "--set k");
+  ExpectFailure("simulate --json --law linear-dashpot --set k=1e999", 9, "k=1e999");
+  ExpectFailure("simulate --json --law linear-dashpot --set k=nan", 9, "k=nan");
+  ExpectFailure("simulate --json --law linear-dashpot --expression 'k*d'", 9, "--expression");
+  ExpectFailure("simulate --json --scene " + Quote(P("bad.toml")), 8, "bad.toml:3");
+}
+
 TEST_F(CliTest, AnalyzeCsvAndTable) {
   const RunResult js = Run("analyze " + Quote(P("good.wav")) + " --height 0.2 --json");
   ASSERT_EQ(js.exit_code, 0) << js.err;

@@ -53,7 +53,11 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
   res.clipping = audio.clipping;
   if (audio.channels.empty() || audio.channels.front().empty())
     throw Error(ErrorCode::kNotAudio, path + ": no samples");
-  const SelectedSignal sel = SelectChannel(audio, options.channel);
+  // One channel: nothing to choose (skips the auto score, which costs a full pass).
+  ChannelSelection choice = options.channel;
+  if (audio.channels.size() == 1 && choice.kind == ChannelSelection::Kind::kAuto)
+    choice = ChannelSelection{ChannelSelection::Kind::kIndex, 0};
+  const SelectedSignal sel = SelectChannel(audio, choice);
   res.channel = sel.channel;
   res.channel_score_db = sel.channel_score;
   double peak = 0.0;

@@ -69,6 +69,9 @@ bool OnsetOptions::IsValid(std::string* error) const {
   if (!(aic_pre_s > 0.0) || !(aic_post_s > 0.0))
     return fail("OnsetOptions::aic_pre_s and aic_post_s must be > 0");
   if (!(sigma_floor_s >= 0.0)) return fail("OnsetOptions::sigma_floor_s must be >= 0");
+  if (!(template_s >= 1e-4) || template_s > 0.02)
+    return fail("OnsetOptions::template_s must be in [1e-4, 0.02] s");
+  if (!(template_threshold > 0.0)) return fail("OnsetOptions::template_threshold must be > 0");
   return true;
 }
 
@@ -121,13 +124,20 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, std::size_t ma
   // (lag-window / "white noise correction", Makhoul 1975 sec. III-D).
   r[0] *= 1.0 + 1e-6;
   const std::vector<double> a = LevinsonDurbin(r, order);
+  // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block).
   std::vector<float> out(x);
-  for (std::size_t j = 1; j < a.size(); ++j) {
-    const float aj = static_cast<float>(a[j]);
-    float* o = out.data() + j;
-    const float* in = x.data();
-    const std::size_t m = n - j;
-    for (std::size_t i = 0; i < m; ++i) o[i] += aj * in[i];
+  std::vector<float> af(a.size());
+  for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
+  const std::size_t blk = 2048;
+  for (std::size_t b0 = 0; b0 < n; b0 += blk) {
+    const std::size_t b1 = std::min(n, b0 + blk);
+    for (std::size_t j = 1; j < af.size(); ++j) {
+      const float aj = af[j];
+      const std::size_t start = std::max(b0, j);
+      float* o = out.data();
+      const float* in = x.data() - j;
+      for (std::size_t i = start; i < b1; ++i) o[i] += aj * in[i];
+    }
   }
   return out;
 }
@@ -198,6 +208,62 @@ struct OnsetDetector::Fft {
   Fft& operator=(const Fft&) = delete;
 };
 
+// Overlap-save FFT correlation of a long signal with a short template (plans made once).
+struct OnsetDetector::Correlator {
+  int n = 0;  // FFT size
+  double* buf = nullptr;
+  fftw_complex* spec = nullptr;
+  fftw_complex* tspec = nullptr;
+  fftw_plan fwd = nullptr, inv = nullptr;
+  explicit Correlator(int size) : n(size) {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    const std::size_t nb = static_cast<std::size_t>(n / 2 + 1);
+    buf = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
+    spec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * nb));
+    tspec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * nb));
+    fwd = fftw_plan_dft_r2c_1d(n, buf, spec, FFTW_ESTIMATE);
+    inv = fftw_plan_dft_c2r_1d(n, spec, buf, FFTW_ESTIMATE);
+  }
+  ~Correlator() {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    fftw_destroy_plan(fwd);
+    fftw_destroy_plan(inv);
+    fftw_free(buf);
+    fftw_free(spec);
+    fftw_free(tspec);
+  }
+  Correlator(const Correlator&) = delete;
+  Correlator& operator=(const Correlator&) = delete;
+
+  // out[i] = sum_j h[j] x[i + j] for i in [0, x.size()), x zero beyond its end.
+  std::vector<double> Correlate(const std::vector<float>& x, const std::vector<double>& h) {
+    const std::size_t nn = static_cast<std::size_t>(n), m = h.size(), nb = nn / 2 + 1;
+    assert(m < nn / 2);
+    std::fill(buf, buf + nn, 0.0);
+    for (std::size_t j = 0; j < m; ++j) buf[j] = h[j];
+    fftw_execute_dft_r2c(fwd, buf, tspec);
+    const std::size_t step = nn - m + 1;  // valid outputs per block
+    std::vector<double> out(x.size(), 0.0);
+    const double scale = 1.0 / static_cast<double>(nn);
+    for (std::size_t b = 0; b < x.size(); b += step) {
+      const std::size_t len = std::min(nn, x.size() - b);
+      for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
+      std::fill(buf + len, buf + nn, 0.0);
+      fftw_execute_dft_r2c(fwd, buf, spec);
+      for (std::size_t k = 0; k < nb; ++k) {  // X * conj(H): correlation
+        const double re = spec[k][0] * tspec[k][0] + spec[k][1] * tspec[k][1];
+        const double im = spec[k][1] * tspec[k][0] - spec[k][0] * tspec[k][1];
+        spec[k][0] = re;
+        spec[k][1] = im;
+      }
+      fftw_execute_dft_c2r(inv, spec, buf);
+      const std::size_t valid = std::min(step, x.size() - b);
+      for (std::size_t i = 0; i < valid; ++i) out[b + i] = buf[i] * scale;
+    }
+    return out;
+  }
+};
+
 OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
     : options_(options), rate_hz_(rate_hz) {
   std::string why;
@@ -209,6 +275,10 @@ OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
   hop_ = std::max(1, NearestPowerOfTwo(hop_target));
   window_ = std::max(16, 4 * hop_);
   fft_ = std::make_unique<Fft>(window_);
+  template_len_ = std::max(8, static_cast<int>(std::lround(options.template_s * rate_hz)));
+  int corr_n = 256;
+  while (corr_n < 8 * template_len_) corr_n *= 2;
+  corr_ = std::make_unique<Correlator>(corr_n);
 }
 
 OnsetDetector::~OnsetDetector() = default;
@@ -327,20 +397,21 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     peaks.push_back(t);
   }
 
-  // 4. Refinement and per-impact measures.
+  // 4. Refinement and per-impact measures. `centre`: coarse onset sample.
   const std::size_t pre =
       std::max<std::size_t>(nw, static_cast<std::size_t>(options_.aic_pre_s * rate_hz_));
   const std::size_t post =
       std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
   const double noise_var = std::max(res.noise_rms * res.noise_rms, 1e-30);
-  for (std::size_t t : peaks) {
-    // The click is most likely in the newest half of the window at the flux peak.
-    const std::size_t centre = t * hop + nw / 2 + nw / 4;
+  // tight: the coarse onset is already good to a few samples (template match).
+  auto make_impact = [&](std::size_t centre, bool tight) {
     double onset = static_cast<double>(centre);
     double sigma = static_cast<double>(hop) / std::sqrt(12.0);
     if (options_.refine) {
-      const std::size_t b = centre > pre ? centre - pre : 0;
-      const AicPick p = PickAic(w, b, std::min(n, centre + post));
+      const std::size_t pr = tight ? std::max<std::size_t>(16, pre / 3) : pre;
+      const std::size_t po = tight ? std::max<std::size_t>(8, post / 2) : post;
+      const std::size_t b = centre > pr ? centre - pr : 0;
+      const AicPick p = PickAic(w, b, std::min(n, centre + po));
       if (p.valid) {
         onset = p.index;
         sigma = p.sigma;
@@ -349,13 +420,14 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     Impact imp;
     imp.time_s = onset / rate_hz_;
     imp.sigma_s = std::hypot(sigma / rate_hz_, options_.sigma_floor_s);
-    const std::size_t i0 = static_cast<std::size_t>(std::max(0.0, std::floor(onset)));
+    const std::size_t i0 =
+        std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
     const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
     double amp = 0.0;
     for (std::size_t i = i0; i < pk_end; ++i)
       amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
     imp.amplitude = amp;
-    // SNR: whitened power just after the onset over the power before it.
+    // SNR: whitened power just after the onset over the power in the 10 ms before it.
     const std::size_t len_post =
         std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
     double e_post = 0.0;
@@ -371,43 +443,125 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     const double p_pre =
         pre_end > pre_begin ? e_pre / static_cast<double>(pre_end - pre_begin) : noise_var;
     imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * noise_var) + 1e-30));
-    res.onsets.push_back(imp);
+    return imp;
+  };
+  for (std::size_t t : peaks) {
+    // The click is most likely in the newest half of the window at the flux peak.
+    res.onsets.push_back(make_impact(t * hop + nw / 2 + nw / 4, false));
   }
 
-  // 5. Template score: normalised cross-correlation of each onset's whitened waveform with
-  // the strongest onset's, best lag within +-0.3 ms.
-  if (!res.onsets.empty()) {
-    std::size_t ref = 0;
-    for (std::size_t i = 1; i < res.onsets.size(); ++i)
-      if (res.onsets[i].snr_db > res.onsets[ref].snr_db) ref = i;
-    const long lead = static_cast<long>(0.00025 * rate_hz_) + 1;
-    const long len = static_cast<long>(0.002 * rate_hz_) + 4;
-    const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
-    auto seg_start = [&](const Impact& im) {
-      return static_cast<long>(im.time_s * rate_hz_) - lead;
-    };
-    const long rs = seg_start(res.onsets[ref]);
-    auto sample = [&](long i) {
-      return (i >= 0 && i < static_cast<long>(n))
-                 ? static_cast<double>(w[static_cast<std::size_t>(i)])
-                 : 0.0;
-    };
-    double rr = 0.0;
-    for (long i = 0; i < len; ++i) rr += sample(rs + i) * sample(rs + i);
-    for (Impact& im : res.onsets) {
-      const long cs = seg_start(im);
-      double best = 0.0;
-      for (long lag = -maxlag; lag <= maxlag; ++lag) {
-        double xy = 0.0, yy = 0.0;
-        for (long i = 0; i < len; ++i) {
-          const double y = sample(cs + lag + i);
-          xy += sample(rs + i) * y;
-          yy += y * y;
-        }
-        if (yy > 0.0 && rr > 0.0) best = std::max(best, xy / std::sqrt(rr * yy));
+  // 5. Template pass: the impacts of one ball on one plate look alike. The whitened waveform of
+  // the strongest onset is the template; its normalised cross-correlation (NCC) with the whole
+  // whitened signal (FFT overlap-save) finds impacts the flux missed (late impacts on top of
+  // ringing) and scores every onset (Impact::score).
+  if (res.onsets.empty()) return res;
+  std::size_t strongest = 0;
+  for (std::size_t i = 1; i < res.onsets.size(); ++i)
+    if (res.onsets[i].snr_db > res.onsets[strongest].snr_db) strongest = i;
+  const std::size_t lead = static_cast<std::size_t>(0.1e-3 * rate_hz_) + 1;
+  const std::size_t tl = static_cast<std::size_t>(template_len_);
+  const long ref_start =
+      std::lround(res.onsets[strongest].time_s * rate_hz_) - static_cast<long>(lead);
+  if (ref_start < 0 || static_cast<std::size_t>(ref_start) + tl > n) return res;
+  std::vector<double> h(tl);
+  double hh = 0.0;
+  for (std::size_t j = 0; j < tl; ++j) {
+    h[j] = w[static_cast<std::size_t>(ref_start) + j];
+    hh += h[j] * h[j];
+  }
+  if (!(hh > 0.0)) return res;
+  const std::vector<double> xc = corr_->Correlate(w, h);
+  std::vector<double> e2(n + 1, 0.0);  // prefix sums of w^2
+  for (std::size_t i = 0; i < n; ++i) e2[i + 1] = e2[i] + static_cast<double>(w[i]) * w[i];
+  auto ncc = [&](std::size_t i) {
+    const std::size_t e = std::min(n, i + tl);
+    const double ww = e2[e] - e2[i];
+    return ww > 0.0 ? xc[i] / std::sqrt(hh * ww) : 0.0;
+  };
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  for (Impact& im : res.onsets) {
+    const long s0 = std::lround(im.time_s * rate_hz_) - static_cast<long>(lead);
+    double best = 0.0;
+    for (long l = std::max(0L, s0 - maxlag); l <= s0 + maxlag && l < static_cast<long>(n); ++l)
+      best = std::max(best, ncc(static_cast<std::size_t>(l)));
+    im.score = std::clamp(best, 0.0, 1.0);
+  }
+  // Template timing check: the NCC peak (parabolic interpolation) gives the onset relative to
+  // the template's own onset. Where the AIC pick disagrees with it by more than a sample plus
+  // 2 sigma (a weak onset on top of ringing: the AIC then often jumps to a later rise), the
+  // template time is used.
+  const double t_ref = res.onsets[strongest].time_s;
+  auto template_time = [&](double t_guess, double* c_out) {
+    const long s0 = std::lround(t_guess * rate_hz_) - static_cast<long>(lead);
+    long best_l = -1;
+    double best_c = -2.0;
+    for (long l = std::max(1L, s0 - maxlag); l <= s0 + maxlag && l + 1 < static_cast<long>(n);
+         ++l) {
+      const double c = ncc(static_cast<std::size_t>(l));
+      if (c > best_c) {
+        best_c = c;
+        best_l = l;
       }
-      im.score = std::clamp(best, 0.0, 1.0);
     }
+    *c_out = best_c;
+    if (best_l < 1) return t_guess;
+    const double cm = ncc(static_cast<std::size_t>(best_l - 1));
+    const double cp = ncc(static_cast<std::size_t>(best_l + 1));
+    const double den = cm - 2.0 * best_c + cp;
+    const double d = den < 0.0 ? std::clamp(0.5 * (cm - cp) / den, -0.5, 0.5) : 0.0;
+    return t_ref + (static_cast<double>(best_l - ref_start) + d) / rate_hz_;
+  };
+  auto check_with_template = [&](Impact& im) {
+    double c = 0.0;
+    const double tt = template_time(im.time_s, &c);
+    if (c < 0.3) return;
+    const double dev = std::fabs(im.time_s - tt);
+    if (dev > 1.0 / rate_hz_ + 2.0 * im.sigma_s) {
+      im.time_s = tt;
+      // NCC peak precision ~ sqrt(1 - c^2) / c samples (scaled), plus the floor.
+      const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - c * c)) / c;
+      im.sigma_s = std::hypot(sig_samples / rate_hz_, options_.sigma_floor_s);
+    }
+  };
+  if (options_.refine)
+    for (Impact& im : res.onsets) check_with_template(im);
+
+  if (options_.template_threshold < 1.0) {
+    std::vector<double> known;
+    for (const Impact& im : res.onsets) known.push_back(im.time_s);
+    std::sort(known.begin(), known.end());
+    const std::size_t gap_s = static_cast<std::size_t>(options_.min_gap_s * rate_hz_);
+    // The NCC of a template of L samples with white noise has a standard deviation of about
+    // 1/sqrt(L): ask for 4 of those at least, so short templates (low rates) stay selective.
+    const double ncc_min =
+        std::max(options_.template_threshold, 4.0 / std::sqrt(static_cast<double>(tl)));
+    std::vector<std::pair<std::size_t, double>> found;  // (start sample, ncc)
+    for (std::size_t i = 1; i + tl < n; ++i) {
+      if (xc[i] <= 0.0) continue;
+      const double ww = e2[std::min(n, i + tl)] - e2[i];
+      if (xc[i] * xc[i] < ncc_min * ncc_min * hh * ww) continue;  // NCC < ncc_min, no sqrt
+      const double c = ncc(i);
+      if (!found.empty() && i - found.back().first <= gap_s) {
+        if (c > found.back().second) found.back() = {i, c};
+        continue;
+      }
+      found.push_back({i, c});
+    }
+    const std::size_t before = res.onsets.size();
+    for (const auto& [i, c] : found) {
+      const double t = static_cast<double>(i + lead) / rate_hz_;
+      auto it = std::lower_bound(known.begin(), known.end(), t);
+      const bool near_known = (it != known.end() && *it - t < options_.min_gap_s) ||
+                              (it != known.begin() && t - *(it - 1) < options_.min_gap_s);
+      if (near_known) continue;
+      Impact imp = make_impact(i + lead, true);
+      imp.score = std::clamp(c, 0.0, 1.0);
+      if (options_.refine) check_with_template(imp);
+      res.onsets.push_back(imp);
+    }
+    if (res.onsets.size() != before)
+      std::sort(res.onsets.begin(), res.onsets.end(),
+                [](const Impact& a, const Impact& b) { return a.time_s < b.time_s; });
   }
   return res;
 }

@@ -171,6 +171,7 @@ bool TrackOptions::IsValid(std::string* error) const {
     return fail("TrackOptions::min_sequence_impacts = " + std::to_string(min_sequence_impacts) +
                 ": must be >= 3 (a ratio needs three impacts)");
   if (max_predecessors < 1) return fail("TrackOptions::max_predecessors must be >= 1");
+  if (max_candidates < 3) return fail("TrackOptions::max_candidates must be >= 3");
   if (max_sequences < 1) return fail("TrackOptions::max_sequences must be >= 1");
   return true;
 }
@@ -185,13 +186,20 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
   if (!o.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
   std::vector<double> w(c.size());
   for (std::size_t i = 0; i < c.size(); ++i) w[i] = CandidateWeight(c[i]);
+  // Too many candidates (a noisy file): keep the strongest max_candidates for the DP, so the
+  // fan-in limit still spans the longest flights.
+  std::vector<int> all;
+  for (std::size_t i = 0; i < c.size(); ++i) all.push_back(static_cast<int>(i));
+  if (static_cast<int>(all.size()) > o.max_candidates) {
+    std::stable_sort(all.begin(), all.end(), [&](int a, int b) {
+      return w[static_cast<std::size_t>(a)] > w[static_cast<std::size_t>(b)];
+    });
+    all.resize(static_cast<std::size_t>(o.max_candidates));
+    std::sort(all.begin(), all.end());
+  }
   std::vector<Chain> chains;
   std::vector<std::vector<int>> work;
-  {
-    std::vector<int> all(c.size());
-    for (std::size_t i = 0; i < c.size(); ++i) all[i] = static_cast<int>(i);
-    work.push_back(std::move(all));
-  }
+  work.push_back(std::move(all));
   while (!work.empty() && static_cast<int>(chains.size()) < o.max_sequences) {
     std::vector<int> seg = std::move(work.back());
     work.pop_back();

@@ -32,16 +32,18 @@
 namespace bouncecal {
 
 struct OnsetOptions {
-  double hop_s = 0.0;            // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
-  int lpc_order = 32;            // whitening predictor order (0 = no whitening)
-  double threshold_mads = 4.0;   // threshold = running median + threshold_mads * MAD
-  double min_novelty_db = 2.5;   // and at least this flux (dB) above the running median
-  double median_window_s = 0.3;  // running-median window of the adaptive threshold
-  double min_gap_s = 0.0015;     // peaks closer than this: keep the stronger
-  bool refine = true;            // AIC sub-sample refinement (else: coarse frame time)
-  double aic_pre_s = 0.002;      // AIC window before the coarse onset
-  double aic_post_s = 0.0008;    // AIC window after the coarse onset
-  double sigma_floor_s = 2e-6;   // added in quadrature to the AIC curvature sigma
+  double hop_s = 0.0;               // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
+  int lpc_order = 32;               // whitening predictor order (0 = no whitening)
+  double threshold_mads = 4.0;      // threshold = running median + threshold_mads * MAD
+  double min_novelty_db = 2.5;      // and at least this flux (dB) above the running median
+  double median_window_s = 0.3;     // running-median window of the adaptive threshold
+  double min_gap_s = 0.0015;        // peaks closer than this: keep the stronger
+  bool refine = true;               // AIC sub-sample refinement (else: coarse frame time)
+  double aic_pre_s = 0.002;         // AIC window before the coarse onset
+  double aic_post_s = 0.0008;       // AIC window after the coarse onset
+  double sigma_floor_s = 2e-6;      // added in quadrature to the AIC curvature sigma
+  double template_s = 0.0015;       // template length (whitened strongest impact)
+  double template_threshold = 0.4;  // NCC above which a template match is a candidate (>= 1: off)
   bool IsValid(std::string* error) const;
 };
 
@@ -89,11 +91,14 @@ class OnsetDetector {
 
  private:
   struct Fft;
+  struct Correlator;
   OnsetOptions options_;
   double rate_hz_;
   int hop_ = 0;
   int window_ = 0;
   std::unique_ptr<Fft> fft_;
+  int template_len_ = 0;
+  std::unique_ptr<Correlator> corr_;
 };
 
 }  // namespace bouncecal

@@ -38,8 +38,9 @@ struct TrackOptions {
   double missed_penalty = 1.5;      // score cost of a flagged missed impact
   int min_sequence_impacts = 3;     // fewer impacts: not a bounce sequence
   double min_mean_weight = 1.0;     // a sequence's mean candidate weight must reach this
-  int max_predecessors = 40;        // DP fan-in per candidate (nearest earlier candidates)
+  int max_predecessors = 64;        // DP fan-in per candidate (nearest earlier candidates)
   int max_sequences = 16;
+  int max_candidates = 300;  // more: only the strongest (by weight) enter the DP
   bool IsValid(std::string* error) const;
 };
 

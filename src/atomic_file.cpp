@@ -48,9 +48,14 @@ void WriteFileAtomically(const std::string& path, const std::string& contents,
   fs::path dir = target.parent_path();
   if (dir.empty()) dir = ".";
   std::random_device rd;
-  const fs::path tmp =
-      dir / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid()) + "-" +
-             std::to_string(rd()));
+  // Built by appending (GCC 12 reports a false -Wrestrict for "." + std::string&&).
+  std::string tmp_name = ".";
+  tmp_name += target.filename().string();
+  tmp_name += ".tmp";
+  tmp_name += std::to_string(::getpid());
+  tmp_name += '-';
+  tmp_name += std::to_string(rd());
+  const fs::path tmp = dir / tmp_name;
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) {

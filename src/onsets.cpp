@@ -507,8 +507,8 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     if (best_l < 1) return t_guess;
     const double cm = ncc(static_cast<std::size_t>(best_l - 1));
     const double cp = ncc(static_cast<std::size_t>(best_l + 1));
-    const double den = cm - 2.0 * best_c + cp;
-    const double d = den < 0.0 ? std::clamp(0.5 * (cm - cp) / den, -0.5, 0.5) : 0.0;
+    const double curv = cm - 2.0 * best_c + cp;
+    const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
     return t_ref + (static_cast<double>(best_l - ref_start) + d) / rate_hz_;
   };
   auto check_with_template = [&](Impact& im) {

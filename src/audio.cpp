@@ -232,7 +232,8 @@ Audio ReadAudio(const std::string& path) {
   const int nch = sfinfo.channels;
   const auto total = static_cast<std::size_t>(sfinfo.frames);
   a.channels.assign(static_cast<std::size_t>(nch), std::vector<float>());
-  for (auto& c : a.channels) c.reserve(total);
+  // (A corrupt header may claim absurd lengths: reserve at most 16 Mi frames up front.)
+  for (auto& c : a.channels) c.reserve(std::min<std::size_t>(total, std::size_t{1} << 24));
   constexpr sf_count_t kBlock = 65536;
   std::vector<float> buf(static_cast<std::size_t>(kBlock) * static_cast<std::size_t>(nch));
   std::int64_t read_total = 0;
@@ -325,7 +326,8 @@ SelectedSignal SelectChannel(const Audio& audio, const ChannelSelection& selecti
       return out;
     case ChannelSelection::Kind::kMix: {
       out.channel = -1;
-      const std::size_t n = audio.channels[0].size();
+      std::size_t n = audio.channels[0].size();
+      for (const auto& c : audio.channels) n = std::min(n, c.size());
       std::vector<double> acc(n, 0.0);
       for (const auto& c : audio.channels) {
         for (std::size_t i = 0; i < n; ++i) acc[i] += c[i];
@@ -361,6 +363,15 @@ void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& 
       std::fabs(sample_rate_hz - std::round(sample_rate_hz)) > 1e-9) {
     throw Error(ErrorCode::kBadParameter, path + ": sample rate " + std::to_string(sample_rate_hz) +
                                               " Hz is not a positive whole number of hertz");
+  }
+  for (std::size_t c = 0; c < channels.size(); ++c) {
+    for (std::size_t i = 0; i < frames; ++i) {
+      if (!std::isfinite(channels[c][i])) {
+        throw Error(ErrorCode::kBadParameter, path + ": non-finite sample in channel " +
+                                                  std::to_string(c) + " at frame " +
+                                                  std::to_string(i) + "; nothing written");
+      }
+    }
   }
   const int major = FormatFromExtension(path);
   const int sub = SubtypeFromName(path, options.subtype);

@@ -82,8 +82,8 @@ struct AudioWriteOptions {
 // Writes channels[c][frame] to path; format from the extension (.wav .flac .ogg/.oga .aiff .aif).
 // Atomic (atomic_file.hpp semantics, force = true: callers enforce --force themselves).
 // Values beyond full scale saturate in integer subtypes. Throws Error(kOutput) for an unknown
-// extension/subtype or a failed write, Error(kBadParameter) for ragged channels or a
-// non-integer sample rate.
+// extension/subtype or a failed write, Error(kBadParameter) for ragged channels, NaN/Inf
+// samples or a non-integer sample rate.
 void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& channels,
                 double sample_rate_hz, const AudioWriteOptions& options = {});
 

@@ -458,7 +458,9 @@ LawSetup MakeLawSetup(const Scene& scene, const CalibrationOptions& options) {
       s.free.push_back(static_cast<int>(i));
     }
     double typ = std::max(std::abs(s.start[i]), std::abs(sp.default_value));
-    if (!(typ > 0.0)) typ = std::isfinite(sp.upper) && sp.upper > 0 ? 1e-3 * sp.upper : 1.0;
+    // Both zero (a damping coefficient defaulting to 0): one unit, or half the upper bound
+    // when that is below one. SeedDamping refines it from the seeded value.
+    if (!(typ > 0.0)) typ = std::isfinite(sp.upper) && sp.upper < 1.0 ? 0.5 * sp.upper : 1.0;
     s.typical.push_back(typ);
   }
   if (s.free.empty()) {
@@ -481,9 +483,7 @@ std::string SeedDamping(LawSetup& s, double e_med, double v_med, double g,
   auto clamp_into_bounds = [&](std::vector<double>& p) {
     const auto& specs = s.law->Parameters();
     for (size_t i = 0; i < p.size(); ++i) {
-      const double span = specs[i].upper - specs[i].lower;
-      const double margin = std::isfinite(span) ? 1e-9 * span : 0.0;
-      p[i] = std::clamp(p[i], specs[i].lower + margin, specs[i].upper - margin);
+      p[i] = std::clamp(p[i], specs[i].lower, specs[i].upper);
     }
   };
   if (auto p = s.law->DampingForRestitution(s.start, s.body, e_med, v_med)) {
@@ -882,6 +882,12 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
     seed_note = SeedDamping(setup, e_med, v_med, fp.g, fp.sim, &fp.restitution_simulations);
   }
 
+  // A seeded value is the best magnitude estimate of a parameter (steps, scaling).
+  for (int i : setup.free) {
+    const double v = std::abs(setup.start[static_cast<size_t>(i)]);
+    if (v > 0.0 && std::isfinite(v)) setup.typical[static_cast<size_t>(i)] = v;
+  }
+
   // Parameter blocks and counting.
   const size_t nfree = setup.free.size();
   for (int i : setup.free) {
@@ -1273,14 +1279,18 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
             std::max(law_cov(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)), 0.0));
       }
       if (!fpar.determined && specs[i].damping) damping_undetermined = true;
-      const double span = specs[i].upper - specs[i].lower;
-      const double tol = std::isfinite(span) ? 1e-9 * span : 0.0;
+      const double tol = 1e-8 * setup.typical[i];
       fpar.at_bound = fpar.value <= specs[i].lower + tol || fpar.value >= specs[i].upper - tol;
     }
     c.parameters.push_back(fpar);
   }
   if (!cov_ok) notes.push_back("the covariance could not be computed (rank-deficient Jacobian)");
   notes.push_back(seed_note);
+  if (c.chi2_dof > 10.0) {
+    notes.push_back("chi2/dof = " + Fmt(c.chi2_dof, 3) +
+                    ": the law does not describe these impacts within their timing sigmas "
+                    "(sigmas scaled by sqrt(chi2/dof); compare laws with --law all)");
+  }
   if (summary.termination_type == ceres::NO_CONVERGENCE) {
     notes.push_back("iteration limit reached");
   }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <sstream>
 #include <utility>
@@ -863,10 +865,18 @@ SynthResult Synthesize(const SynthSpec& spec) {
 }
 
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
+  nlohmann::json j = TruthJson(spec.scene, spec.render, result.recording, spec.name);
+  j["restitution"] = spec.restitution.ToJson();
+  nlohmann::json truth_opts = {{"min_interval_s", spec.truth.min_interval_s}};
+  truth_opts["contact_s"] =
+      spec.truth.contact_s ? nlohmann::json(*spec.truth.contact_s) : nlohmann::json("hertz");
+  j["truth_options"] = truth_opts;
+  return j;
+}
+
+nlohmann::json TruthJson(const Scene& sc, const RenderOptions& ro, const Recording& rec,
+                         const std::string& name) {
   using nlohmann::json;
-  const Scene& sc = spec.scene;
-  const RenderOptions& ro = spec.render;
-  const Recording& rec = result.recording;
   json j;
   j["generator"] = std::string("bouncecal synth ") + BOUNCECAL_VERSION;
   j["sample_rate_hz"] = rec.sample_rate_hz;
@@ -877,7 +887,7 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
       "time_s: first touch on the file's clock (t = 0 at sample 0, sample n at n/rate); "
       "onset_s = time_s + latency_s + channel[0].delay_s: first instant of the contact force "
       "pulse as heard in channel 0; channel c hears it at time_s + latency_s + channel[c].delay_s";
-  j["preset"] = spec.name;
+  j["preset"] = name;
   j["seed"] = ro.seed;
   json scene;
   scene["ball"] = {{"diameter_m", sc.ball.diameter_m},
@@ -897,10 +907,6 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
                           {"drag_coefficient", sc.environment.drag_coefficient}};
   j["scene"] = scene;
   j["scene_toml"] = SceneToToml(sc);
-  j["restitution"] = spec.restitution.ToJson();
-  json truth_opts = {{"min_interval_s", spec.truth.min_interval_s}};
-  truth_opts["contact_s"] = spec.truth.contact_s ? json(*spec.truth.contact_s) : json("hertz");
-  j["truth_options"] = truth_opts;
   json render;
   json chans = json::array();
   for (const ChannelSpec& c : ro.channels) {
@@ -953,6 +959,61 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
   }
   j["distractors"] = distractors;
   return j;
+}
+
+TruthFile LoadTruth(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw Error(ErrorCode::kInputMissing, path + ": no such file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::kInputMissing, path + ": cannot be opened for reading");
+  TruthFile t;
+  try {
+    t.document = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(ErrorCode::kBadParameter, path + ": not JSON (" + e.what() + ")");
+  }
+  const nlohmann::json& j = t.document;
+  std::string key;
+  try {
+    key = "generator";
+    if (j.at(key).get<std::string>().rfind("bouncecal synth", 0) != 0) {
+      throw Error(ErrorCode::kBadParameter, path + ": not a bouncecal synth truth file");
+    }
+    key = "sample_rate_hz";
+    t.sample_rate_hz = j.at(key).get<double>();
+    key = "render.latency_s";
+    t.latency_s = j.at("render").at("latency_s").get<double>();
+    key = "drops";
+    for (const auto& d : j.at("drops")) {
+      std::vector<RenderedImpact> drop;
+      for (const auto& i : d.at("impacts")) {
+        RenderedImpact r;
+        key = "drops[].impacts[]";
+        r.truth.time_s = i.at("time_s").get<double>();
+        r.truth.v_in_m_s = i.at("v_in_m_s").get<double>();
+        r.truth.v_out_m_s = i.at("v_out_m_s").get<double>();
+        r.truth.contact_s = i.at("contact_s").get<double>();
+        r.onset_s = i.at("onset_s").get<double>();
+        r.amplitude = i.at("amplitude").get<double>();
+        r.snr_db = i.at("snr_db").get<double>();
+        r.clipped = i.at("clipped").get<bool>();
+        drop.push_back(r);
+      }
+      t.drops.push_back(std::move(drop));
+    }
+    key = "distractors";
+    for (const auto& d : j.at("distractors")) {
+      t.distractors.push_back(Distractor{d.at("time_s").get<double>(),
+                                         d.at("amplitude").get<double>(),
+                                         d.at("freq_hz").get<double>()});
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(ErrorCode::kBadParameter,
+                path + ": " + key + ": missing or of the wrong type (" + e.what() + ")");
+  }
+  return t;
 }
 
 }  // namespace bouncecal

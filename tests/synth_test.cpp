@@ -534,6 +534,79 @@ TEST(TruthJson, HasTheContractKeys) {
   EXPECT_EQ(back.drop.height_m, s.scene.drop.height_m);
 }
 
+TEST(TruthJson, LoadTruthReadsBackWhatWasWritten) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("bouncecal_truth_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const SynthSpec s = SynthPreset("two-drops");
+  const SynthResult r = Synthesize(s);
+  const std::string path = (dir / "t.truth.json").string();
+  std::ofstream(path) << TruthJson(s, r).dump(2);
+  const TruthFile t = LoadTruth(path);
+  EXPECT_EQ(t.sample_rate_hz, 48000.0);
+  EXPECT_EQ(t.latency_s, s.render.latency_s);
+  ASSERT_EQ(t.drops.size(), 2u);
+  for (std::size_t d = 0; d < 2; ++d) {
+    ASSERT_EQ(t.drops[d].size(), r.recording.drops[d].size());
+    for (std::size_t k = 0; k < t.drops[d].size(); ++k) {
+      EXPECT_EQ(t.drops[d][k].onset_s, r.recording.drops[d][k].onset_s);  // exact round trip
+      EXPECT_EQ(t.drops[d][k].truth.v_out_m_s, r.recording.drops[d][k].truth.v_out_m_s);
+      EXPECT_EQ(t.drops[d][k].snr_db, r.recording.drops[d][k].snr_db);
+    }
+  }
+  ASSERT_EQ(t.distractors.size(), r.recording.distractors.size());
+  EXPECT_EQ(t.distractors[2].time_s, r.recording.distractors[2].time_s);
+
+  auto code = [](const std::string& p) {
+    try {
+      LoadTruth(p);
+    } catch (const Error& e) {
+      return e.code();
+    }
+    return ErrorCode::kOk;
+  };
+  EXPECT_EQ(code((dir / "none.json").string()), ErrorCode::kInputMissing);
+  std::ofstream(dir / "text.json") << "not json";
+  EXPECT_EQ(code((dir / "text.json").string()), ErrorCode::kBadParameter);
+  std::ofstream(dir / "other.json") << R"({"generator": "bouncecal synth 0.1.0", "drops": 3})";
+  EXPECT_EQ(code((dir / "other.json").string()), ErrorCode::kBadParameter);
+  fs::remove_all(dir);
+}
+
+// The bundled default recording is what data/README.md says: the steel-copper preset rendered
+// from data/default_steel_copper.toml with seed 1 (regenerate with
+// tools/make_default_recording.sh after changing the renderer).
+TEST(DefaultRecording, IsTheDocumentedRenderingOfItsScene) {
+  const std::string root = BOUNCECAL_SOURCE_DIR;
+  const std::string flac = root + "/data/default_steel_copper.flac";
+  const Audio a = ReadAudio(flac);
+  EXPECT_EQ(a.info.format, "FLAC");
+  EXPECT_EQ(a.info.sample_rate_hz, 48000);
+  EXPECT_EQ(a.info.channels, 1);
+  EXPECT_GE(a.info.duration_s(), 8.0);
+  EXPECT_LE(a.info.duration_s(), 10.0);
+  EXPECT_LT(fs::file_size(flac), 1000000u);
+
+  SynthSpec spec = SynthPreset("steel-copper");
+  spec.scene = LoadSceneFile(root + "/data/default_steel_copper.toml");
+  spec.render.seed = 1;
+  const SynthResult r = Synthesize(spec);
+  ASSERT_EQ(r.recording.channels[0].size(), a.channels[0].size());
+  double worst = 0;
+  for (std::size_t n = 0; n < a.channels[0].size(); ++n) {
+    worst = std::max(worst, std::fabs(double(a.channels[0][n]) - r.recording.channels[0][n]));
+  }
+  EXPECT_LE(worst, 1.5 / 32768.0);  // 16-bit quantisation only
+
+  const TruthFile t = LoadTruth(root + "/data/default_steel_copper.truth.json");
+  ASSERT_EQ(t.drops.size(), 1u);
+  ASSERT_EQ(t.drops[0].size(), r.truth[0].size());
+  for (std::size_t k = 0; k < t.drops[0].size(); ++k) {
+    EXPECT_EQ(t.drops[0][k].truth.time_s, r.truth[0][k].time_s);
+    EXPECT_EQ(t.drops[0][k].onset_s, r.recording.drops[0][k].onset_s);
+  }
+}
+
 // ---- the command -----------------------------------------------------------------------------
 
 class SynthCli : public ::testing::Test {

@@ -213,5 +213,23 @@ SynthResult Synthesize(const SynthSpec& spec);
 //  "render": {...}, "drops": [{"impacts": [{"index", "time_s", "onset_s", "v_in_m_s",
 //  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped"}...]}], "distractors": [...]}
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result);
+// The same document for impacts that came from elsewhere (e.g. the contact-law simulator):
+// everything but "restitution" and "truth_options"; add your own keys to say where the
+// impacts came from. name goes to "preset".
+nlohmann::json TruthJson(const Scene& scene, const RenderOptions& render,
+                         const Recording& recording, const std::string& name);
+
+// A truth file read back (LoadTruth): what a benchmark needs to score a detector.
+struct TruthFile {
+  double sample_rate_hz = 0.0;
+  double latency_s = 0.0;
+  std::vector<std::vector<RenderedImpact>> drops;  // onset_s, amplitude, snr_db, truth...
+  std::vector<Distractor> distractors;
+  nlohmann::json document;  // the whole JSON
+};
+// Reads a truth JSON written by `bouncecal synth` / TruthJson. Throws Error(kInputMissing) for
+// a missing/unreadable file and Error(kBadParameter) naming the file and the key when the
+// document is not a truth file.
+TruthFile LoadTruth(const std::string& path);
 
 }  // namespace bouncecal

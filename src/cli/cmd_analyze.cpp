@@ -213,18 +213,30 @@ void Run(const AnalyzeFlags& flags) {
     << " used; " << seq.impacts.size() << " impacts in the main sequence (of "
     << det.sequences.size() << " sequence(s)), end: " << seq.end_reason << "\n";
   o << EffectsLine(scene, an, aopt.use_drop) << "\n\n";
-  o << "    k     time_s  sigma_us  interval_s   v_in_m_s  +-        v_out_m_s  +-        e        "
-       "+-         eta      +-       contact_us\n";
+  // "value +- sigma" pairs, "-" where unknown.
+  auto pm = [](double v, double sigma, int decimals, int sigma_decimals) {
+    if (!std::isfinite(v)) return std::string("-");
+    return Fixed(v, decimals) + " +- " + Fixed(sigma, sigma_decimals);
+  };
+  const bool show_contact = scene.effects.contact_duration;
+  char head[256];
+  std::snprintf(head, sizeof head, "%4s %11s %8s %11s  %-21s %-21s %-20s %-20s%s\n", "k", "time_s",
+                "sigma_us", "interval_s", "v_in_m_s", "v_out_m_s", "e", "eta",
+                show_contact ? "  contact_us" : "");
+  auto rstrip = [](std::string t) {
+    while (t.size() > 1 && t[t.size() - 2] == ' ') t.erase(t.size() - 2, 1);
+    return t;
+  };
+  o << rstrip(head);
   for (const Bounce& b : an.bounces) {
     char line[512];
-    std::snprintf(line, sizeof line,
-                  "%5d %10.6f %9s %11s %10s %-9s %10s %-9s %8s %-10s %8s %-8s %10s\n", b.index,
+    std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s\n", b.index,
                   b.time_s, Fixed(b.time_sigma_s * 1e6, 2).c_str(), Fixed(b.interval_s, 6).c_str(),
-                  Fixed(b.v_in_m_s, 5).c_str(), Fixed(b.v_in_sigma_m_s, 5).c_str(),
-                  Fixed(b.v_out_m_s, 5).c_str(), Fixed(b.v_out_sigma_m_s, 5).c_str(),
-                  Fixed(b.e, 5).c_str(), Fixed(b.e_sigma, 6).c_str(), Fixed(b.eta, 5).c_str(),
-                  Fixed(b.eta_sigma, 5).c_str(), Fixed(b.contact_s * 1e6, 1).c_str());
-    o << line;
+                  pm(b.v_in_m_s, b.v_in_sigma_m_s, 5, 5).c_str(),
+                  pm(b.v_out_m_s, b.v_out_sigma_m_s, 5, 5).c_str(),
+                  pm(b.e, b.e_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
+                  show_contact ? ("  " + Fixed(b.contact_s * 1e6, 1, 10)).c_str() : "");
+    o << rstrip(line);
   }
   o << "\nsummary: " << an.bounces.size() << " impacts, " << sum.n_with_e << " with e";
   if (sum.n_with_e > 0) {

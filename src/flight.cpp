@@ -75,6 +75,16 @@ double LogCosh(double b) {
   return b + std::log1p(std::exp(-2.0 * b)) - std::log(2.0);
 }
 
+// Ratios that tend to 1 as x -> 0, evaluated without underflow (series below 1e-8, where the
+// next term is < 1e-16 relative).
+double AtanRatio(double x) { return x < 1e-8 ? 1.0 - x * x / 3.0 : std::atan(x) / x; }
+double AsinhRatio(double x) { return x < 1e-8 ? 1.0 - x * x / 6.0 : std::asinh(x) / x; }
+double Log1pRatio(double x) { return x < 1e-8 ? 1.0 - 0.5 * x : std::log1p(x) / x; }
+// ln(1 + x^2) without overflow of x^2.
+double Log1pSquare(double x) {
+  return x > 1e100 ? 2.0 * std::log(x) + std::log1p(1.0 / (x * x)) : std::log1p(x * x);
+}
+
 // Safeguarded Newton for an increasing function F on [lo, hi] with F(lo) <= 0 <= F(hi):
 // Newton steps from z0, bisection whenever a step leaves the bracket or does not shrink it
 // fast enough. Converges to machine precision (the bracket or step reaches a few ulp).
@@ -113,6 +123,9 @@ double SolveIncreasing(Residual&& residual, double lo, double hi, double z0) {
 double LinearDescentY(double psi) {
   if (psi <= 0.0) return 0.0;
   const double s = std::sqrt(2.0 * psi);
+  // Series y = s + s^2/6 + O(s^3) (phi(y) = y^2/2 - y^3/6 + ...), exact to < 1e-16 here; also
+  // keeps phi(y) ~ y^2/2 from underflowing for tiny heights.
+  if (psi < 1e-30) return s + s * s / 6.0;
   const double lo = s;
   const double hi = std::max(s, psi + 1.0);
   auto residual = [s](double y, double* f, double* df) {
@@ -123,6 +136,12 @@ double LinearDescentY(double psi) {
     *df = root > 0.0 ? -std::expm1(-y) / root : 1.0;
   };
   return SolveIncreasing(residual, lo, hi, lo);
+}
+
+// The same descent variable for a launch at x = v0 / v_t: phi(y) = psi(x). For tiny x,
+// y = x - x^2/6 + O(x^3) (psi(x) = x^2/2 - x^3/3 + ...), which avoids the underflow of x^2.
+double LinearDescentYForLaunch(double x) {
+  return x < 1e-8 ? x - x * x / 6.0 : LinearDescentY(Psi(x));
 }
 
 void CheckFinite(double value, const char* what, const char* function) {
@@ -146,7 +165,9 @@ FlightModel FlightModel::Vacuum(double g_eff_m_s2) {
 
 FlightModel FlightModel::Quadratic(double g_eff_m_s2, double terminal_speed_m_s) {
   FlightModel vac = Vacuum(g_eff_m_s2);
-  if (std::isinf(terminal_speed_m_s) && terminal_speed_m_s > 0.0) return vac;
+  // A terminal speed above 1e100 m/s changes no result in double precision for any physical
+  // speed (relative effect (v0/v_t)^2), but its square would overflow: treat it as no drag.
+  if (terminal_speed_m_s > 1e100) return vac;
   if (!(terminal_speed_m_s > 0.0) || !std::isfinite(terminal_speed_m_s)) {
     throw Error(ErrorCode::kBadParameter, "flight: terminal speed must be > 0 m/s (got " +
                                               std::to_string(terminal_speed_m_s) + ")");
@@ -156,7 +177,8 @@ FlightModel FlightModel::Quadratic(double g_eff_m_s2, double terminal_speed_m_s)
 
 FlightModel FlightModel::Linear(double g_eff_m_s2, double rate_per_s) {
   FlightModel vac = Vacuum(g_eff_m_s2);
-  if (rate_per_s == 0.0) return vac;
+  // No drag, or so little that v_t = g / rate exceeds 1e100 m/s (see Quadratic).
+  if (rate_per_s == 0.0 || (rate_per_s > 0.0 && g_eff_m_s2 / rate_per_s > 1e100)) return vac;
   if (!(rate_per_s > 0.0) || !std::isfinite(rate_per_s)) {
     throw Error(ErrorCode::kBadParameter,
                 "flight: linear drag rate must be finite and >= 0 1/s (got " +
@@ -206,9 +228,9 @@ double FlightModel::RiseTime(double v0_m_s) const {
     case DragModel::kNone:
       return v0_m_s / g_;
     case DragModel::kQuadratic:
-      return p_ / g_ * std::atan(v0_m_s / p_);
+      return v0_m_s / g_ * AtanRatio(v0_m_s / p_);
     case DragModel::kLinear:
-      return std::log1p(v0_m_s * p_ / g_) / p_;
+      return v0_m_s / g_ * Log1pRatio(v0_m_s * p_ / g_);
   }
   return 0.0;
 }
@@ -220,11 +242,15 @@ double FlightModel::ApexHeight(double v0_m_s) const {
       return v0_m_s * v0_m_s / (2.0 * g_);
     case DragModel::kQuadratic: {
       const double x = v0_m_s / p_;
-      return p_ * p_ / (2.0 * g_) * std::log1p(x * x);
+      if (x < 1e-8) return v0_m_s * v0_m_s / (2.0 * g_) * (1.0 - 0.5 * x * x);
+      return p_ * p_ / (2.0 * g_) * Log1pSquare(x);
     }
     case DragModel::kLinear: {
       const double vt = g_ / p_;
-      return vt / p_ * Psi(v0_m_s / vt);
+      const double x = v0_m_s / vt;
+      // psi(x) = x^2/2 (1 - 2x/3 + ...): v0^2/(2g) form for tiny x (no underflow of x^2).
+      if (x < 1e-8) return v0_m_s * v0_m_s / (2.0 * g_) * (1.0 - 2.0 * x / 3.0);
+      return vt / p_ * Psi(x);
     }
   }
   return 0.0;
@@ -237,11 +263,12 @@ double FlightModel::FlightTime(double v0_m_s) const {
       return 2.0 * v0_m_s / g_;
     case DragModel::kQuadratic: {
       const double x = v0_m_s / p_;
-      return p_ / g_ * (std::atan(x) + std::asinh(x));
+      return v0_m_s / g_ * (AtanRatio(x) + AsinhRatio(x));
     }
     case DragModel::kLinear: {
       const double x = v0_m_s * p_ / g_;
-      return (std::log1p(x) + LinearDescentY(Psi(x))) / p_;
+      if (x < 1e-8) return v0_m_s / g_ * (2.0 - 2.0 * x / 3.0);  // (ln(1+x) + y) / r, series
+      return (std::log1p(x) + LinearDescentYForLaunch(x)) / p_;
     }
   }
   return 0.0;
@@ -258,7 +285,9 @@ double FlightModel::ArrivalSpeed(double v0_m_s) const {
     }
     case DragModel::kLinear: {
       const double vt = g_ / p_;
-      const double y = LinearDescentY(Psi(v0_m_s / vt));
+      const double x = v0_m_s / vt;
+      if (x < 1e-8) return v0_m_s * (1.0 - 2.0 * x / 3.0);  // v_t (y - y^2/2), y = x - x^2/6
+      const double y = LinearDescentYForLaunch(x);
       return -vt * std::expm1(-y);
     }
   }
@@ -281,7 +310,7 @@ double FlightModel::FlightTimeDerivative(double v0_m_s) const {
       // dT/dv0 = (1/g) (1/(1+x) + psi'(x)/phi'(y)), psi' = x/(1+x), phi' = 1 - exp(-y).
       const double x = v0_m_s * p_ / g_;
       if (x == 0.0) return 2.0 / g_;
-      const double y = LinearDescentY(Psi(x));
+      const double y = LinearDescentYForLaunch(x);
       const double dphi = -std::expm1(-y);
       const double ratio = dphi > 0.0 ? (x / (1.0 + x)) / dphi : 1.0;
       return (1.0 / (1.0 + x) + ratio) / g_;
@@ -304,7 +333,7 @@ double FlightModel::ArrivalSpeedDerivative(double v0_m_s) const {
       // v_in = v_t (1 - e^{-y}), phi(y) = psi(x): dv_in/dv0 = e^{-y} psi'(x) / phi'(y).
       const double x = v0_m_s * p_ / g_;
       if (x == 0.0) return 1.0;
-      const double y = LinearDescentY(Psi(x));
+      const double y = LinearDescentYForLaunch(x);
       const double dphi = -std::expm1(-y);
       return dphi > 0.0 ? std::exp(-y) * (x / (1.0 + x)) / dphi : 1.0;
     }
@@ -323,6 +352,8 @@ double FlightModel::LaunchSpeedForFlightTime(double flight_time_s) const {
       // derivative 1 + sech(u) lies in (1, 2]: Newton is well conditioned for every T.
       // Bracket: u <= u + gd(u) <= 2u  =>  tau/2 <= u <= tau.
       const double tau = g_ * flight_time_s / p_;
+      // Small tau: v0 = (gT/2)(1 + tau^2/16 + O(tau^4)) (series of the relation above).
+      if (tau < 1e-5) return 0.5 * g_ * flight_time_s * (1.0 + tau * tau / 16.0);
       auto residual = [tau](double u, double* f, double* df) {
         *f = u + std::atan(std::sinh(u)) - tau;
         *df = 1.0 + 1.0 / std::cosh(u);
@@ -334,8 +365,10 @@ double FlightModel::LaunchSpeedForFlightTime(double flight_time_s) const {
       // r T = ln(1+x) + y(x). Drag shortens the flight (x >= r T / 2) and, since phi(y) <= y,
       // y >= psi(x) so r T >= x: bracket [rT/2, rT].
       const double rt = p_ * flight_time_s;
+      // Small rT: v0 = (gT/2)(1 + rT/6 + O((rT)^2)).
+      if (rt < 1e-8) return 0.5 * g_ * flight_time_s * (1.0 + rt / 6.0);
       auto residual = [rt](double x, double* f, double* df) {
-        const double y = LinearDescentY(Psi(x));
+        const double y = LinearDescentYForLaunch(x);
         *f = std::log1p(x) + y - rt;
         const double dphi = -std::expm1(-y);
         const double ratio = dphi > 0.0 ? (x / (1.0 + x)) / dphi : 1.0;
@@ -356,12 +389,17 @@ double FlightModel::FallTime(double height_m) const {
     case DragModel::kQuadratic: {
       // t = (v_t/g) acosh(exp(q)), q = g h / v_t^2; acosh(exp(q)) = asinh(sqrt(expm1(2q))).
       const double q = g_ * height_m / (p_ * p_);
+      // Small q: t = sqrt(2h/g) (1 + q/6 + O(q^2)) (cosh b = e^q), no underflow of q.
+      if (q < 1e-8) return std::sqrt(2.0 * height_m / g_) * (1.0 + q / 6.0);
       const double b = q > 300.0 ? q + std::log(2.0) : std::asinh(std::sqrt(std::expm1(2.0 * q)));
       return p_ / g_ * b;
     }
     case DragModel::kLinear: {
       // phi(r t) = h r / v_t.
+      // phi(r t) = h r / v_t; for tiny s = r sqrt(2h/g): t = sqrt(2h/g) (1 + s/6).
       const double vt = g_ / p_;
+      const double s = p_ * std::sqrt(2.0 * height_m / g_);
+      if (s < 1e-15) return std::sqrt(2.0 * height_m / g_) * (1.0 + s / 6.0);
       return LinearDescentY(height_m * p_ / vt) / p_;
     }
   }
@@ -376,10 +414,13 @@ double FlightModel::FallArrivalSpeed(double height_m) const {
     case DragModel::kQuadratic: {
       // v = v_t sqrt(1 - exp(-2 g h / v_t^2)).
       const double q = g_ * height_m / (p_ * p_);
+      if (q < 1e-8) return std::sqrt(2.0 * g_ * height_m) * (1.0 - 0.5 * q);
       return p_ * std::sqrt(-std::expm1(-2.0 * q));
     }
     case DragModel::kLinear: {
       const double vt = g_ / p_;
+      const double s = p_ * std::sqrt(2.0 * height_m / g_);
+      if (s < 1e-15) return std::sqrt(2.0 * g_ * height_m) * (1.0 - s / 3.0);
       return -vt * std::expm1(-LinearDescentY(height_m * p_ / vt));
     }
   }
@@ -399,7 +440,7 @@ void FlightModel::State(double v0_m_s, double t_s, double* height_m, double* vel
     case DragModel::kQuadratic: {
       const double vt = p_;
       const double x = v0_m_s / vt;
-      const double t_up = vt / g_ * std::atan(x);
+      const double t_up = RiseTime(v0_m_s);
       if (t_s <= t_up) {
         // v = v_t tan(atan x - a), z = (v_t^2/g) ln(cos(atan x - a)/cos(atan x)),
         // cos(atan x - a)/cos(atan x) = cos a + x sin a, a = g t / v_t.
@@ -412,7 +453,7 @@ void FlightModel::State(double v0_m_s, double t_s, double* height_m, double* vel
         // Fall from rest at the apex for s = t - t_up: v = -v_t tanh(b), fallen (v_t^2/g) ln cosh
         // b.
         const double b = g_ * (t_s - t_up) / vt;
-        z = vt * vt / (2.0 * g_) * std::log1p(x * x) - vt * vt / g_ * LogCosh(b);
+        z = ApexHeight(v0_m_s) - vt * vt / g_ * LogCosh(b);
         v = -vt * std::tanh(b);
       }
       break;
@@ -421,7 +462,7 @@ void FlightModel::State(double v0_m_s, double t_s, double* height_m, double* vel
       const double r = p_;
       const double vt = g_ / r;
       const double x = v0_m_s / vt;
-      const double t_up = std::log1p(x) / r;
+      const double t_up = RiseTime(v0_m_s);
       if (t_s <= t_up) {
         // v = (v0 + v_t) e^{-rt} - v_t,  z = v0 t - (v0 + v_t) phi(r t) / r.
         const double a = r * t_s;

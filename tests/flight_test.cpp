@@ -275,6 +275,43 @@ TEST(FlightTest, StateIsConsistentWithTheFlight) {
   }
 }
 
+TEST(FlightTest, ExtremeSpeedsStayFiniteAndAccurate) {
+  // v0 -> 0 (down to 1e-300: series forms, no underflow of x^2) and v0 >> v_t.
+  const std::vector<FlightModel> models = {
+      FlightModel::Quadratic(kG, 9.0),  FlightModel::Linear(kG, 0.5),
+      FlightModel::Quadratic(kG, 1e-3), FlightModel::Linear(kG, 1e3),
+      FlightModel::Quadratic(kG, 1e90), FlightModel::Linear(kG, 1e-90)};
+  for (const FlightModel& f : models) {
+    for (double v0 : {1e-300, 1e-150, 1e-20, 1e-9}) {
+      // Far below terminal speed: the vacuum flight to relative order v0/v_t (linear drag) or
+      // (v0/v_t)^2 (quadratic).
+      const double tol = 4 * v0 / f.terminal_speed_m_s() + 1e-13;
+      EXPECT_NEAR(f.FlightTime(v0) / (2 * v0 / kG), 1.0, tol) << v0;
+      EXPECT_NEAR(f.RiseTime(v0) / (v0 / kG), 1.0, tol) << v0;
+      EXPECT_NEAR(f.ArrivalSpeed(v0) / v0, 1.0, tol) << v0;
+      EXPECT_NEAR(f.LaunchSpeedForFlightTime(f.FlightTime(v0)) / v0, 1.0, 1e-14) << v0;
+      EXPECT_NEAR(f.FlightTimeDerivative(v0) * kG / 2, 1.0, tol);
+      EXPECT_NEAR(f.ArrivalSpeedDerivative(v0), 1.0, 2 * tol);
+    }
+    EXPECT_NEAR(f.ApexHeight(1e-20) / (1e-40 / (2 * kG)), 1.0, 1e-12);
+    EXPECT_NEAR(f.FallTime(1e-300) / std::sqrt(2e-300 / kG), 1.0, 1e-12);
+    EXPECT_NEAR(f.FallArrivalSpeed(1e-300) / std::sqrt(2 * kG * 1e-300), 1.0, 1e-12);
+    for (double v0 : {1e3, 1e20, 1e300}) {
+      const double t = f.FlightTime(v0);
+      EXPECT_TRUE(std::isfinite(t) && t > 0) << v0;
+      EXPECT_FALSE(std::isnan(f.ApexHeight(v0))) << v0;  // may overflow: H > 1e308 m
+      EXPECT_LE(f.ArrivalSpeed(v0), std::min(v0, f.terminal_speed_m_s()) * (1 + 1e-15));
+      double z = 0, v = 0;
+      f.State(v0, 0.5 * t, &z, &v);
+      EXPECT_FALSE(std::isnan(z) || std::isnan(v)) << v0;
+    }
+    EXPECT_NEAR(f.LaunchSpeedForFlightTime(f.FlightTime(1e20)) / 1e20, 1.0, 1e-13);
+  }
+  // Drag too weak to matter in double precision is dropped (its square would overflow).
+  EXPECT_EQ(FlightModel::Quadratic(kG, 1e200).drag(), DragModel::kNone);
+  EXPECT_EQ(FlightModel::Linear(kG, 1e-200).drag(), DragModel::kNone);
+}
+
 TEST(FlightTest, FromSceneUsesTheSceneEffects) {
   Scene s;  // 1 cm steel ball, drag off
   EXPECT_EQ(FlightModel::FromScene(s).drag(), DragModel::kNone);

@@ -205,10 +205,11 @@ Analysis AnalyzeBounces(const Sequence& sequence, const Scene& scene,
     bo.eta = 1.0 - bo.e * bo.e;
     bo.eta_sigma = 2.0 * std::abs(bo.e) * bo.e_sigma;
     if (bo.e > 1.0) {
-      out.warnings.push_back("impact " + std::to_string(k) +
-                             Fmt(": e = %.5f > 1 (+- %.2g): timing noise, a wrong scene (drag, "
-                                 "drop height) or a mis-tracked impact",
-                                 bo.e, bo.e_sigma));
+      out.warnings.push_back(
+          "impact " + std::to_string(k) + Fmt(": e = %.5f > 1 (+- %.2g): ", bo.e, bo.e_sigma) +
+          (k == 0 ? "the drop height/impact speed is too low for the first interval, or the "
+                    "first detected impact is not the drop's first"
+                  : "timing noise, a wrong scene (drag) or a mis-tracked impact"));
     }
   }
   // Correlation of successive e's: shared onsets t_k (e_k's "this", e_{k+1}'s "prev") and

@@ -313,7 +313,10 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
     {
       const Phys a = sys.Unscale(x);
       const Phys b = sys.Unscale(x_hi);
-      const double fb = sys.Force(b);
+      // At the step end the force is known from the ball's acceleration (the FSAL derivative):
+      // y'' = g - F/m, so no extra force evaluation is needed.
+      const double fb =
+          t_hi == t1 ? body.mass_kg * (g - f_new[1] * sc.speed_m_s / sc.time_s) : sys.Force(b);
       run.peak_overlap_m = std::max(run.peak_overlap_m, b.delta);
       run.peak_force_n = std::max(run.peak_force_n, fb);
       if (a.delta_dot > 0.0 && b.delta_dot <= 0.0) {
@@ -408,7 +411,12 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
     // Energy: checked while the ball moves out, or once the contact outlasts 1.5 estimates.
     bool energy_gone = false;
     double e_left = 0.0;
-    if (stuck_energy > 0.0 && (x[1] <= 0.0 || t >= 1.5 || creeping || sliding)) {
+    // Cheap precheck: elastic, plate and internal energies are >= 0, so the ball's own energy
+    // (kinetic + potential) must already be below the threshold.
+    const double y_m = x[0] * sc.length_m, yd_m_s = x[1] * sc.speed_m_s;
+    const double ball_j = 0.5 * body.mass_kg * yd_m_s * yd_m_s - body.mass_kg * g * y_m;
+    if (stuck_energy > 0.0 && ball_j < stuck_energy &&
+        (x[1] <= 0.0 || t >= 1.5 || creeping || sliding)) {
       const Phys pc = sys.Unscale(x);
       e_left = sys.BallEnergy(pc) + sys.Elastic(pc) + sys.PlateEnergy(pc) + sys.Internal(pc);
       energy_gone = e_left < stuck_energy && pc.delta > 0.0;

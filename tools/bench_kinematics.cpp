@@ -18,6 +18,8 @@
 //   z_rms       RMS((e - e_true) / e_sigma): ~1 if the propagated sigmas are honest
 //   rms_e_truth RMS(e - e_true) from the renderer's exact onsets (perfect detection): checks
 //               the kinematics against the renderer's independent forward model
+//   rms_ratio_truth  the same with interval ratios (no drag, no contact duration): the error
+//               of the seed's eq. 11 alone, from perfect onsets
 //   d_eta3      mean eta of the first three (exact kinematics) minus truth, per drop (mean |.|)
 #include <unistd.h>
 #include <algorithm>
@@ -46,7 +48,7 @@ struct Row {
   double eta3_abs = 0;
   int files = 0, failed = 0;
   int n_truth = 0;
-  double sum2_truth = 0;
+  double sum2_truth = 0, sum2_truth_ratio = 0;
 };
 
 struct Match {
@@ -69,8 +71,8 @@ int main(int argc, char** argv) {
   }
   const fs::path dir = fs::temp_directory_path() / ("bench_kinematics_" + std::to_string(getpid()));
   fs::create_directories(dir);
-  std::printf("%-14s %5s %5s %11s %11s %9s %6s %9s %11s\n", "preset", "files", "n_e", "rms_e",
-              "rms_e_ratio", "max_e", "z_rms", "d_eta3", "rms_e_truth");
+  std::printf("%-14s %5s %5s %11s %11s %9s %6s %9s %11s %15s\n", "preset", "files", "n_e", "rms_e",
+              "rms_e_ratio", "max_e", "z_rms", "d_eta3", "rms_e_truth", "rms_ratio_truth");
   Row total;
   for (const std::string& name : SynthPresetNames()) {
     Row row;
@@ -81,14 +83,6 @@ int main(int argc, char** argv) {
       const std::string path = (dir / (name + "-" + std::to_string(seed) + ".wav")).string();
       WriteAudio(path, r.recording.channels, r.recording.sample_rate_hz, {"PCM_24"});
       ++row.files;
-      DetectionResult det;
-      try {
-        det = DetectImpacts(ReadAudio(path), DetectOptions{});
-      } catch (const Error& e) {
-        std::fprintf(stderr, "%s: %s\n", path.c_str(), e.what());
-        ++row.failed;
-        continue;
-      }
       const auto& drops = r.recording.drops;
       // Perfect detection: the truth onsets themselves.
       for (size_t d = 0; d < drops.size(); ++d) {
@@ -103,11 +97,24 @@ int main(int argc, char** argv) {
         AnalysisOptions opt;
         if (spec.truth.contact_s) opt.contact_time_s = *spec.truth.contact_s;
         const Analysis a = AnalyzeBounces(exact_seq, scene, opt);
+        Scene naive_scene = scene;
+        naive_scene.effects = Effects{};
+        const Analysis n = AnalyzeBounces(exact_seq, naive_scene, {});
         for (size_t k = 0; k + 1 < drops[d].size(); ++k) {
           const double err = a.bounces[k].e - drops[d][k].truth.e();
           ++row.n_truth;
           row.sum2_truth += err * err;
+          const double err_ratio = n.bounces[k].e - drops[d][k].truth.e();
+          row.sum2_truth_ratio += err_ratio * err_ratio;
         }
+      }
+      DetectionResult det;
+      try {
+        det = DetectImpacts(ReadAudio(path), DetectOptions{});
+      } catch (const Error& e) {
+        std::fprintf(stderr, "%s: %s\n", path.c_str(), e.what());
+        ++row.failed;
+        continue;
       }
       for (const Sequence& seq : det.sequences) {
         // Match detected impacts to truth onsets (+-1 ms).
@@ -181,11 +188,13 @@ int main(int argc, char** argv) {
     }
     auto print = [](const std::string& label, const Row& rw) {
       const double n = std::max(rw.n_e, 1);
-      std::printf("%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e%s\n", label.c_str(),
-                  rw.files, rw.n_e, std::sqrt(rw.sum2 / n), std::sqrt(rw.sum2_ratio / n),
-                  rw.max_abs, std::sqrt(rw.z2 / n), rw.n_eta3 ? rw.eta3_abs / rw.n_eta3 : NAN,
-                  std::sqrt(rw.sum2_truth / std::max(rw.n_truth, 1)),
-                  rw.failed ? (" (" + std::to_string(rw.failed) + " failed)").c_str() : "");
+      std::printf(
+          "%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e %15.3e%s\n", label.c_str(),
+          rw.files, rw.n_e, std::sqrt(rw.sum2 / n), std::sqrt(rw.sum2_ratio / n), rw.max_abs,
+          std::sqrt(rw.z2 / n), rw.n_eta3 ? rw.eta3_abs / rw.n_eta3 : NAN,
+          std::sqrt(rw.sum2_truth / std::max(rw.n_truth, 1)),
+          std::sqrt(rw.sum2_truth_ratio / std::max(rw.n_truth, 1)),
+          rw.failed ? (" (detection failed on " + std::to_string(rw.failed) + ")").c_str() : "");
     };
     print(name, row);
     total.files += row.files;
@@ -199,13 +208,15 @@ int main(int argc, char** argv) {
     total.eta3_abs += row.eta3_abs;
     total.n_truth += row.n_truth;
     total.sum2_truth += row.sum2_truth;
+    total.sum2_truth_ratio += row.sum2_truth_ratio;
   }
-  std::printf("%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e\n", "all", total.files,
+  std::printf("%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e %15.3e\n", "all", total.files,
               total.n_e, std::sqrt(total.sum2 / std::max(total.n_e, 1)),
               std::sqrt(total.sum2_ratio / std::max(total.n_e, 1)), total.max_abs,
               std::sqrt(total.z2 / std::max(total.n_e, 1)),
               total.n_eta3 ? total.eta3_abs / total.n_eta3 : NAN,
-              std::sqrt(total.sum2_truth / std::max(total.n_truth, 1)));
+              std::sqrt(total.sum2_truth / std::max(total.n_truth, 1)),
+              std::sqrt(total.sum2_truth_ratio / std::max(total.n_truth, 1)));
   std::error_code ec;
   fs::remove_all(dir, ec);
   return 0;

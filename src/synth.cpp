@@ -571,6 +571,15 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
   // Clean sound per channel (unit scale).
   const std::size_t nch = options.channels.size();
   std::vector<std::vector<double>> clean(nch, std::vector<double>(n_samples, 0.0));
+  std::vector<std::vector<Mode>> channel_modes(nch, modes);
+  for (std::size_t c = 0; c < nch; ++c) {
+    if (options.channels[c].mode_spread_db > 0.0) {
+      Rng rng = Stream(options.seed, kModeSpread, c);
+      for (Mode& m : channel_modes[c]) {
+        m.gain *= std::pow(10.0, rng.Normal() * options.channels[c].mode_spread_db / 20.0);
+      }
+    }
+  }
   for (std::size_t c = 0; c < nch; ++c) {
     std::vector<Event> events;
     for (const auto& drop : drops) {
@@ -582,14 +591,7 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
         }
       }
     }
-    std::vector<Mode> channel_modes = modes;
-    if (options.channels[c].mode_spread_db > 0.0) {
-      Rng rng = Stream(options.seed, kModeSpread, c);
-      for (Mode& m : channel_modes) {
-        m.gain *= std::pow(10.0, rng.Normal() * options.channels[c].mode_spread_db / 20.0);
-      }
-    }
-    RenderEvents(events, channel_modes, options.click_gain, rate, &clean[c]);
+    RenderEvents(events, channel_modes[c], options.click_gain, rate, &clean[c]);
   }
   double unit_peak = 0.0;
   for (std::size_t c = 0; c < nch; ++c) {
@@ -607,7 +609,7 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
       options.snr_db ? options.peak_level * std::pow(10.0, -*options.snr_db / 20.0) : 0.0;
   rec.noise_rms = noise_rms;
 
-  // Per-impact truth: own clean peak in channel 0 (rendered alone over its first 5 ms).
+  // Per-impact truth: own clean peak in each channel (rendered alone over its first 5 ms).
   const double window_s = 5e-3;
   for (const auto& drop : drops) {
     std::vector<RenderedImpact> rd;
@@ -615,15 +617,22 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
       RenderedImpact r;
       r.truth = i;
       r.onset_s = i.time_s + options.latency_s + options.channels[0].delay_s;
-      const double t0 = std::floor(r.onset_s * rate) / rate;
-      std::vector<double> own(
-          static_cast<std::size_t>(std::ceil((window_s + i.contact_s) * rate)) + 2, 0.0);
-      RenderEvents({Event{r.onset_s - t0, i.contact_s, strength(i)}}, modes, options.click_gain,
-                   rate, &own);
-      double pk = 0.0;
-      for (double v : own) pk = std::max(pk, std::fabs(v));
-      r.amplitude = pk * scale * options.channels[0].gain;
-      r.snr_db = noise_rms > 0 ? 20.0 * std::log10(r.amplitude / noise_rms) : 999.0;
+      for (std::size_t c = 0; c < nch; ++c) {
+        const double onset = i.time_s + options.latency_s + options.channels[c].delay_s;
+        const double t0 = std::floor(onset * rate) / rate;
+        std::vector<double> own(
+            static_cast<std::size_t>(std::ceil((window_s + i.contact_s) * rate)) + 2, 0.0);
+        RenderEvents({Event{onset - t0, i.contact_s, strength(i)}}, channel_modes[c],
+                     options.click_gain, rate, &own);
+        double pk = 0.0;
+        for (double v : own) pk = std::max(pk, std::fabs(v));
+        const double amplitude = pk * scale * options.channels[c].gain;
+        r.channel_amplitude.push_back(amplitude);
+        r.channel_snr_db.push_back(noise_rms > 0 ? 20.0 * std::log10(amplitude / noise_rms)
+                                                 : 999.0);
+      }
+      r.amplitude = r.channel_amplitude[0];
+      r.snr_db = r.channel_snr_db[0];
       r.clipped = options.clip_level && r.amplitude > *options.clip_level;
       rd.push_back(r);
     }
@@ -947,6 +956,8 @@ nlohmann::json TruthJson(const Scene& sc, const RenderOptions& ro, const Recordi
                          {"contact_s", r.truth.contact_s},
                          {"amplitude", r.amplitude},
                          {"snr_db", r.snr_db},
+                         {"amplitude_per_channel", r.channel_amplitude},
+                         {"snr_db_per_channel", r.channel_snr_db},
                          {"clipped", r.clipped}});
     }
     drops.push_back({{"impacts", impacts}});
@@ -999,6 +1010,10 @@ TruthFile LoadTruth(const std::string& path) {
         r.amplitude = i.at("amplitude").get<double>();
         r.snr_db = i.at("snr_db").get<double>();
         r.clipped = i.at("clipped").get<bool>();
+        if (i.contains("amplitude_per_channel")) {
+          r.channel_amplitude = i.at("amplitude_per_channel").get<std::vector<double>>();
+          r.channel_snr_db = i.at("snr_db_per_channel").get<std::vector<double>>();
+        }
         drop.push_back(r);
       }
       t.drops.push_back(std::move(drop));

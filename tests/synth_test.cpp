@@ -288,6 +288,13 @@ TEST(Render, ChannelsHearTheModesDifferentlyWithModeSpread) {
   }
   EXPECT_GT(worst, 0.02);                                        // not a scaled copy any more
   EXPECT_EQ(RenderRecording(one, o).channels, spread.channels);  // still deterministic
+  // The truth reports each channel's own level.
+  const auto& imp = spread.drops[0][0];
+  ASSERT_EQ(imp.channel_amplitude.size(), 2u);
+  double peak1 = 0;
+  for (float v : spread.channels[1]) peak1 = std::max(peak1, std::fabs(double(v)));
+  EXPECT_NEAR(imp.channel_amplitude[1], peak1, 1e-6);  // a single impact: its peak is the file's
+  EXPECT_EQ(imp.channel_amplitude[0], imp.amplitude);
 }
 
 TEST(Render, TruthIsIndependentOfTheSampleRate) {
@@ -552,6 +559,7 @@ TEST(TruthJson, LoadTruthReadsBackWhatWasWritten) {
       EXPECT_EQ(t.drops[d][k].onset_s, r.recording.drops[d][k].onset_s);  // exact round trip
       EXPECT_EQ(t.drops[d][k].truth.v_out_m_s, r.recording.drops[d][k].truth.v_out_m_s);
       EXPECT_EQ(t.drops[d][k].snr_db, r.recording.drops[d][k].snr_db);
+      EXPECT_EQ(t.drops[d][k].channel_snr_db, r.recording.drops[d][k].channel_snr_db);
     }
   }
   ASSERT_EQ(t.distractors.size(), r.recording.distractors.size());

@@ -153,6 +153,8 @@ struct RenderedImpact {
   double amplitude = 0.0;  // peak |x| of this impact's own clean sound in channel 0
   double snr_db = 0.0;     // 20 log10(amplitude / noise RMS in channel 0); 999 without noise
   bool clipped = false;    // its clean peak exceeds the clip level (channel 0)
+  std::vector<double> channel_amplitude;  // amplitude in each channel
+  std::vector<double> channel_snr_db;     // snr_db in each channel
 };
 
 struct Distractor {
@@ -211,7 +213,8 @@ SynthResult Synthesize(const SynthSpec& spec);
 // {"generator": "bouncecal synth <version>", "sample_rate_hz", "channels", "duration_s",
 //  "time_convention", "preset", "seed", "scene": {...}, "scene_toml", "restitution": {...},
 //  "render": {...}, "drops": [{"impacts": [{"index", "time_s", "onset_s", "v_in_m_s",
-//  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped"}...]}], "distractors": [...]}
+//  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped", "amplitude_per_channel",
+//  "snr_db_per_channel"}...]}], "distractors": [...]}
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result);
 // The same document for impacts that came from elsewhere (e.g. the contact-law simulator):
 // everything but "restitution" and "truth_options"; add your own keys to say where the

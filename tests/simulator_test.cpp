@@ -357,6 +357,41 @@ TEST(SimulateCli, JsonHasTheStableKeys) {
   EXPECT_TRUE(j.contains("stop_detail"));
 }
 
+TEST(SimulateCli, SceneFileAndFlagsGiveTheLibraryResult) {
+  Scene s = SeedScene();
+  s.law.parameters = {{"k", 1e7}, {"gamma", 0.3}};
+  s.effects.drag = DragModel::kQuadratic;
+  s.limits.max_impacts = 6;
+  const std::string path = testing::TempDir() + "simulate_cli_scene.toml";
+  {
+    FILE* f = std::fopen(path.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    const std::string toml = SceneToToml(s);
+    std::fwrite(toml.data(), 1, toml.size(), f);
+    std::fclose(f);
+  }
+  const std::string cmd = std::string(BOUNCECAL_BINARY) + " simulate --scene " + path + " --csv";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
+  ASSERT_EQ(pclose(pipe), 0) << out;
+  const Simulation sim = RunSim(s);
+  ASSERT_EQ(sim.impacts.size(), 6u);
+  // One header line, then one line per impact whose time matches the library to print precision.
+  size_t line_start = out.find('\n') + 1;
+  for (size_t k = 0; k < sim.impacts.size(); ++k) {
+    const size_t end = out.find('\n', line_start);
+    ASSERT_NE(end, std::string::npos);
+    const std::string line = out.substr(line_start, end - line_start);
+    const size_t c1 = line.find(',');
+    EXPECT_DOUBLE_EQ(std::stod(line.substr(c1 + 1)), sim.impacts[k].time_s) << line;
+    line_start = end + 1;
+  }
+  std::remove(path.c_str());
+}
+
 TEST(SimulateCli, UnknownLawFailsWithItsName) {
   const std::string cmd =
       std::string(BOUNCECAL_BINARY) + " simulate --law no-such-law 2>&1 >/dev/null";

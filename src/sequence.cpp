@@ -34,7 +34,7 @@ struct Chain {
 
 // Best chain among candidates[idx] (idx sorted by time). Empty if none qualifies.
 Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
-                const std::vector<double>& w, const TrackOptions& o) {
+                const std::vector<double>& w, const TrackOptions& o, double min_mean_weight) {
   Chain best_chain;
   const int m = static_cast<int>(idx.size());
   if (m < o.min_sequence_impacts) return best_chain;
@@ -99,7 +99,9 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
           // One impact missed between i and k: d ~ d_prev (e + e^2).
           const double e = p.ratio;
           const double expected = p.d_eff * (e + e * e);
-          if (std::fabs(d / expected - 1.0) <= o.missed_tolerance) {
+          // Both flights around the missed impact must themselves be resolvable.
+          if (std::fabs(d / expected - 1.0) <= o.missed_tolerance &&
+              p.d_eff * e * e >= o.min_interval_s) {
             s.score = p.score + wk - o.missed_penalty;
             s.ratio = e;
             s.d_eff = d * e / (1.0 + e);  // the second of the two flights
@@ -147,7 +149,7 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
     wsum += w[static_cast<std::size_t>(idx[static_cast<std::size_t>(rev[j])])];
     if (rev_missed[j]) chain.missed_after.push_back(static_cast<int>(j) - 1);
   }
-  if (wsum / static_cast<double>(rev.size()) < o.min_mean_weight) return best_chain;
+  if (wsum / static_cast<double>(rev.size()) < min_mean_weight) return best_chain;
   return chain;
 }
 
@@ -203,7 +205,7 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
   while (!work.empty() && static_cast<int>(chains.size()) < o.max_sequences) {
     std::vector<int> seg = std::move(work.back());
     work.pop_back();
-    Chain ch = BestChain(c, seg, w, o);
+    Chain ch = BestChain(c, seg, w, o, chains.empty() ? o.min_mean_weight : o.min_mean_weight_more);
     if (ch.members.empty()) continue;
     const double t0 = c[static_cast<std::size_t>(ch.members.front())].time_s;
     const double t1 = c[static_cast<std::size_t>(ch.members.back())].time_s;

@@ -28,17 +28,18 @@
 namespace bouncecal {
 
 struct TrackOptions {
-  double min_interval_s = 0.003;    // impacts closer than this are not resolvable
-  double max_interval_s = 3.0;      // longest flight considered (h ~ 11 m)
-  double min_ratio = 0.2;           // smallest plausible dt_k / dt_{k-1}
-  double max_ratio = 1.02;          // largest (timing noise on e ~ 1)
-  double ratio_sigma = 0.03;        // scale of the log-ratio change between bounces
-  double max_log_ratio_jump = 0.2;  // hard limit on |log(r_k / r_{k-1})|
-  double missed_tolerance = 0.05;   // relative tolerance of the missed-impact interval
-  double missed_penalty = 1.5;      // score cost of a flagged missed impact
-  int min_sequence_impacts = 3;     // fewer impacts: not a bounce sequence
-  double min_mean_weight = 1.0;     // a sequence's mean candidate weight must reach this
-  int max_predecessors = 64;        // DP fan-in per candidate (nearest earlier candidates)
+  double min_interval_s = 0.003;      // impacts closer than this are not resolvable
+  double max_interval_s = 3.0;        // longest flight considered (h ~ 11 m)
+  double min_ratio = 0.2;             // smallest plausible dt_k / dt_{k-1}
+  double max_ratio = 1.02;            // largest (timing noise on e ~ 1)
+  double ratio_sigma = 0.03;          // scale of the log-ratio change between bounces
+  double max_log_ratio_jump = 0.2;    // hard limit on |log(r_k / r_{k-1})|
+  double missed_tolerance = 0.05;     // relative tolerance of the missed-impact interval
+  double missed_penalty = 1.5;        // score cost of a flagged missed impact
+  int min_sequence_impacts = 3;       // fewer impacts: not a bounce sequence
+  double min_mean_weight = 1.0;       // the best sequence's mean candidate weight must reach this
+  double min_mean_weight_more = 1.4;  // and every further sequence's (drops after the first)
+  int max_predecessors = 64;          // DP fan-in per candidate (nearest earlier candidates)
   int max_sequences = 16;
   int max_candidates = 300;  // more: only the strongest (by weight) enter the DP
   bool IsValid(std::string* error) const;

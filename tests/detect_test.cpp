@@ -1,0 +1,205 @@
+// The detect pipeline (channel selection + onsets + tracking) and `bouncecal detect`.
+#include "bouncecal/detect.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/error.hpp"
+#include "bouncecal/synth.hpp"
+
+namespace bouncecal {
+namespace {
+
+namespace fs = std::filesystem;
+
+Audio InMemory(std::vector<std::vector<float>> ch, double rate, const std::string& name) {
+  Audio a;
+  a.info.path = name;
+  a.info.sample_rate_hz = rate;
+  a.info.channels = static_cast<int>(ch.size());
+  a.info.frames = static_cast<std::int64_t>(ch[0].size());
+  for (std::size_t c = 0; c < ch.size(); ++c) {
+    ClippingReport r;
+    r.channel = static_cast<int>(c);
+    for (float v : ch[c]) r.peak = std::max(r.peak, static_cast<double>(std::fabs(v)));
+    a.clipping.push_back(r);
+  }
+  a.channels = std::move(ch);
+  return a;
+}
+
+ErrorCode CodeOf(const Audio& a) {
+  try {
+    DetectImpacts(a, DetectOptions{});
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(a.info.path), std::string::npos) << e.what();
+    return e.code();
+  }
+  return ErrorCode::kOk;
+}
+
+TEST(Detect, RenderedDropIsFoundWithExactTimes) {
+  SynthSpec spec = SynthPreset("steel-copper");
+  const SynthResult s = Synthesize(spec);
+  const Audio a = InMemory(s.recording.channels, s.recording.sample_rate_hz, "steel.wav");
+  const DetectionResult r = DetectImpacts(a, DetectOptions{});
+  ASSERT_GE(r.main_sequence, 0);
+  const auto& truth = s.recording.drops[0];
+  // The first 20 impacts (all loud, far apart): every one found to within 20 us.
+  const auto& imps = r.main().impacts;
+  ASSERT_GE(imps.size(), 20u);
+  for (std::size_t k = 0; k < 20; ++k) {
+    double best = 1.0;
+    for (const Impact& i : imps) best = std::min(best, std::fabs(i.time_s - truth[k].onset_s));
+    EXPECT_LT(best, 20e-6) << "impact " << k;
+  }
+  for (const Impact& i : imps) {
+    EXPECT_GT(i.sigma_s, 0.0);
+    EXPECT_GE(i.score, 0.0);
+    EXPECT_LE(i.score, 1.0);
+  }
+}
+
+TEST(Detect, TwoDropsAreTwoSequences) {
+  const SynthResult s = Synthesize(SynthPreset("two-drops"));
+  const Audio a = InMemory(s.recording.channels, s.recording.sample_rate_hz, "two.wav");
+  const DetectionResult r = DetectImpacts(a, DetectOptions{});
+  ASSERT_GE(r.sequences.size(), 2u);
+  // Each drop's first impact starts a sequence (channel delay <= 0.25 ms).
+  for (const auto& drop : s.recording.drops) {
+    bool starts = false;
+    for (const Sequence& q : r.sequences)
+      starts = starts || std::fabs(q.impacts.front().time_s - drop.front().onset_s) < 1e-3;
+    EXPECT_TRUE(starts) << "drop at " << drop.front().onset_s;
+  }
+}
+
+TEST(Detect, SilenceIsKSilence) {
+  EXPECT_EQ(CodeOf(InMemory({std::vector<float>(48000, 0.0f)}, 48000, "silent.wav")),
+            ErrorCode::kSilence);
+  // One 16-bit step of dither is still silence.
+  std::vector<float> x(48000);
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] = (i % 2 ? 1.0f : -1.0f) / 32768.0f;
+  EXPECT_EQ(CodeOf(InMemory({x}, 48000, "dither.wav")), ErrorCode::kSilence);
+}
+
+TEST(Detect, NoiseWithoutBouncesIsKNoBounces) {
+  std::mt19937 rng(9);
+  std::normal_distribution<float> g(0.0f, 0.05f);
+  std::vector<float> x(5 * 48000);
+  for (float& v : x) v = g(rng);
+  EXPECT_EQ(CodeOf(InMemory({x}, 48000, "noise.wav")), ErrorCode::kNoBounces);
+}
+
+TEST(Detect, SingleImpactIsKNoBounces) {
+  RenderOptions ro;
+  ro.snr_db = 60.0;
+  TruthImpact t;
+  t.time_s = 0.5;
+  t.v_in_m_s = 1.0;
+  t.v_out_m_s = 0.9;
+  t.contact_s = 5e-5;
+  const Recording rec = RenderRecording(std::vector<TruthImpact>{t}, ro);
+  EXPECT_EQ(CodeOf(InMemory(rec.channels, rec.sample_rate_hz, "single.wav")),
+            ErrorCode::kNoBounces);
+}
+
+TEST(Detect, OptionsValidation) {
+  DetectOptions o;
+  std::string why;
+  EXPECT_TRUE(o.IsValid(&why));
+  o.min_sequence_impacts = 1;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("min_sequence_impacts"), std::string::npos);
+  o = DetectOptions{};
+  o.hop_s = -1;
+  EXPECT_FALSE(o.IsValid(&why));
+  const Audio a = InMemory({std::vector<float>(4800, 0.1f)}, 48000, "x.wav");
+  EXPECT_THROW(DetectImpacts(a, o), Error);
+}
+
+// --- CLI ----------------------------------------------------------------------------------
+
+struct CliRun {
+  int code = -1;
+  std::string out;
+};
+
+CliRun Cli(const std::string& args) {
+  CliRun r;
+  const std::string cmd = std::string(BOUNCECAL_BINARY) + " " + args + " 2>/dev/null";
+  std::unique_ptr<FILE, int (*)(FILE*)> p(popen(cmd.c_str(), "r"), pclose);
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p.get())) > 0) r.out.append(buf, n);
+  const int st = pclose(p.release());
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+class DetectCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("detect_cli_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(DetectCli, JsonCsvAndTable) {
+  const SynthResult s = Synthesize(SynthPreset("pingpong-wood"));
+  const std::string wav = (dir_ / "pp.wav").string();
+  WriteAudio(wav, s.recording.channels, s.recording.sample_rate_hz);
+  const CliRun j = Cli("detect " + wav + " --json");
+  ASSERT_EQ(j.code, 0);
+  const nlohmann::json doc = nlohmann::json::parse(j.out);
+  EXPECT_EQ(doc["sample_rate_hz"].get<double>(), 44100.0);
+  EXPECT_EQ(doc["channels"].get<int>(), 1);
+  ASSERT_TRUE(doc["impacts"].is_array());
+  ASSERT_GE(doc["impacts"].size(), 10u);
+  for (const char* key : {"time_s", "sigma_s", "amplitude", "snr_db", "score"})
+    EXPECT_TRUE(doc["impacts"][0].contains(key)) << key;
+  ASSERT_GE(doc["sequences"].size(), 1u);
+  EXPECT_TRUE(doc["sequences"][0].contains("end_reason"));
+  EXPECT_TRUE(doc["sequences"][0].contains("missed_after"));
+  EXPECT_NEAR(doc["impacts"][0]["time_s"].get<double>(), s.recording.drops[0][0].onset_s, 1e-4);
+
+  const CliRun c = Cli("detect " + wav + " --csv");
+  ASSERT_EQ(c.code, 0);
+  EXPECT_EQ(c.out.rfind("sequence,index,time_s,sigma_s", 0), 0u);
+  std::size_t rows = 0;
+  for (char ch : c.out) rows += ch == '\n';
+  std::size_t total = 0;
+  for (const auto& q : doc["sequences"]) total += q["impacts"].size();
+  EXPECT_EQ(rows, total + 1);
+
+  const CliRun t = Cli("detect " + wav);
+  ASSERT_EQ(t.code, 0);
+  EXPECT_NE(t.out.find("sequence 0"), std::string::npos);
+}
+
+TEST_F(DetectCli, BadInputExitCodes) {
+  EXPECT_EQ(Cli("detect " + (dir_ / "missing.wav").string()).code,
+            static_cast<int>(ErrorCode::kInputMissing));
+  const std::string silent = (dir_ / "silent.wav").string();
+  WriteAudio(silent, {std::vector<float>(44100, 0.0f)}, 44100);
+  const CliRun r = Cli("detect " + silent + " --json");
+  EXPECT_EQ(r.code, static_cast<int>(ErrorCode::kSilence));
+  EXPECT_TRUE(r.out.empty());  // nothing on stdout on failure
+  EXPECT_EQ(Cli("detect " + silent + " --channel 5").code, static_cast<int>(ErrorCode::kUsage));
+  EXPECT_EQ(Cli("detect " + silent + " --hop-ms -1").code, static_cast<int>(ErrorCode::kUsage));
+}
+
+}  // namespace
+}  // namespace bouncecal

@@ -21,8 +21,11 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? 0 : static_cast<int>(bouncecal::ErrorCode::kUsage);
+    // --help and --version are "errors" with exit code 0: let CLI11 print them.
+    if (e.get_exit_code() == 0) return app.exit(e);
+    // Everything else: one line on stderr, like every other bouncecal error.
+    std::fprintf(stderr, "bouncecal: %s (see --help)\n", e.what());
+    return static_cast<int>(bouncecal::ErrorCode::kUsage);
   } catch (const bouncecal::Error& e) {
     std::fflush(stdout);
     std::fprintf(stderr, "bouncecal: %s\n", e.what());

@@ -376,6 +376,25 @@ TEST(Calibrate, BadOptionsAndNamesAreRejected) {
   EXPECT_THROW(Calibrate({{"x", seq}}, SteelScene("no-such-law", {}), {}), Error);
 }
 
+TEST(Calibrate, ImpactsFlaggedMissedByTheDetectorKeepTheSimulatedIndex) {
+  const Scene truth = SteelScene("walton-braun", {{"gamma", 0.2}});
+  Sequence seq = MeasuredFromSimulation(truth, 16, 5e-6, 17);
+  // Drop impacts 6 and 11; the tracker flags each gap (missed_after = measured index).
+  seq.impacts.erase(seq.impacts.begin() + 11);
+  seq.impacts.erase(seq.impacts.begin() + 6);
+  seq.missed_after = {5, 9};
+  const Calibration c = Calibrate({{"gaps", seq}}, SteelScene("walton-braun", {}), {});
+  const auto& g = Param(c, "gamma");
+  EXPECT_NEAR(g.value, 0.2, 3 * g.sigma);
+  EXPECT_LT(c.rms_residual, 20e-6);
+  EXPECT_EQ(c.recordings[0].impacts, 14);
+  EXPECT_EQ(c.recordings[0].simulated_impacts, 16);
+  // Without the flags the same times cannot be fitted.
+  seq.missed_after.clear();
+  const Calibration bad = Calibrate({{"gaps", seq}}, SteelScene("walton-braun", {}), {});
+  EXPECT_GT(bad.chi2_dof, 100.0);
+}
+
 TEST(Calibrate, RobustLossKeepsOneBadImpactFromDraggingTheFit) {
   const Scene truth = SteelScene("walton-braun", {{"gamma", 0.35}});
   Sequence seq = MeasuredFromSimulation(truth, 14, 5e-6, 21);

@@ -69,6 +69,8 @@ bool OnsetOptions::IsValid(std::string* error) const {
   if (!(aic_pre_s > 0.0) || !(aic_post_s > 0.0))
     return fail("OnsetOptions::aic_pre_s and aic_post_s must be > 0");
   if (!(sigma_floor_s >= 0.0)) return fail("OnsetOptions::sigma_floor_s must be >= 0");
+  if (aic_upsample < 1 || aic_upsample > 64)
+    return fail("OnsetOptions::aic_upsample = " + std::to_string(aic_upsample) + ": must be 1..64");
   if (!(template_s >= 1e-4) || template_s > 0.02)
     return fail("OnsetOptions::template_s must be in [1e-4, 0.02] s");
   if (!(template_threshold > 0.0)) return fail("OnsetOptions::template_threshold must be > 0");
@@ -142,21 +144,24 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, std::size_t ma
   return out;
 }
 
-AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end) {
+namespace {
+
+// AIC change point of y (Maeda 1985) with parabolic interpolation of the minimum; `units`
+// samples of y per sample of the original signal (y may be upsampled: its AIC then counts each
+// original sample `units` times, so the likelihood scale is divided by it).
+AicPick AicOn(const std::vector<double>& y, double units) {
   AicPick pick;
-  end = std::min(end, x.size());
-  if (end <= begin + 16) return pick;
-  const std::size_t n = end - begin;
+  const std::size_t n = y.size();
   std::vector<double> s1(n + 1, 0.0), s2(n + 1, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
-    const double v = x[begin + i];
-    s1[i + 1] = s1[i] + v;
-    s2[i + 1] = s2[i] + v * v;
+    s1[i + 1] = s1[i] + y[i];
+    s2[i + 1] = s2[i] + y[i] * y[i];
   }
   const double tiny = 1e-30 + 1e-12 * s2[n] / static_cast<double>(n);
-  const std::size_t kmin = 3, kmax = n - 4;  // each side keeps >= 3 samples
+  const std::size_t kmin = static_cast<std::size_t>(3 * units), kmax = n - kmin - 1;
+  if (kmax <= kmin + 2) return pick;
   std::vector<double> aic(n, 0.0);
-  auto var = [&](std::size_t a, std::size_t b) {  // variance of x[a, b)
+  auto var = [&](std::size_t a, std::size_t b) {  // variance of y[a, b)
     const double m = static_cast<double>(b - a);
     const double mu = (s1[b] - s1[a]) / m;
     return std::max((s2[b] - s2[a]) / m - mu * mu, 0.0) + tiny;
@@ -173,11 +178,46 @@ AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end)
     curv = aic[best - 1] - 2.0 * aic[best] + aic[best + 1];
     if (curv > 0.0) delta = std::clamp(0.5 * (aic[best - 1] - aic[best + 1]) / curv, -0.5, 0.5);
   }
-  // The new regime starts between samples best and best+1.
-  pick.index = static_cast<double>(begin + best) + 0.5 + delta;
-  // AIC ~ -2 log L: the 1-sigma half width is where AIC rises by 1, i.e. sqrt(2 / curvature).
-  pick.sigma = curv > 0.0 ? std::sqrt(2.0 / curv) : 0.5;
+  // The new regime starts between y[best] and y[best + 1].
+  pick.index = (static_cast<double>(best) + 0.5 + delta) / units;
+  // AIC ~ -2 log L (x units): the 1-sigma half width is where it rises by 1.
+  pick.sigma = curv > 0.0 ? std::sqrt(2.0 * units / curv) / units : 0.5;
   pick.valid = true;
+  return pick;
+}
+
+}  // namespace
+
+AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end, int upsample) {
+  AicPick pick;
+  end = std::min(end, x.size());
+  if (end <= begin + 16 || upsample < 1) return pick;
+  const std::size_t n = end - begin;
+  const std::size_t u = static_cast<std::size_t>(upsample);
+  std::vector<double> y(n * u);
+  if (u == 1) {
+    for (std::size_t i = 0; i < n; ++i) y[i] = x[begin + i];
+  } else {
+    // Band-limited interpolation: Hann-windowed sinc, half width kHalf samples, using the
+    // samples around the window too (the signal continues beyond it).
+    constexpr long kHalf = 8;
+    const long xs = static_cast<long>(x.size());
+    for (std::size_t j = 0; j < n * u; ++j) {
+      const double t = static_cast<double>(begin) + static_cast<double>(j) / static_cast<double>(u);
+      const long m0 = static_cast<long>(std::floor(t));
+      double acc = 0.0;
+      for (long m = m0 - kHalf + 1; m <= m0 + kHalf; ++m) {
+        if (m < 0 || m >= xs) continue;
+        const double d = t - static_cast<double>(m);
+        const double sinc = std::fabs(d) < 1e-12 ? 1.0 : std::sin(M_PI * d) / (M_PI * d);
+        const double win = 0.5 + 0.5 * std::cos(M_PI * d / static_cast<double>(kHalf));
+        acc += x[static_cast<std::size_t>(m)] * sinc * win;
+      }
+      y[j] = acc;
+    }
+  }
+  pick = AicOn(y, static_cast<double>(u));
+  if (pick.valid) pick.index += static_cast<double>(begin);
   return pick;
 }
 
@@ -411,7 +451,7 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
       const std::size_t pr = tight ? std::max<std::size_t>(16, pre / 3) : pre;
       const std::size_t po = tight ? std::max<std::size_t>(8, post / 2) : post;
       const std::size_t b = centre > pr ? centre - pr : 0;
-      const AicPick p = PickAic(w, b, std::min(n, centre + po));
+      const AicPick p = PickAic(w, b, std::min(n, centre + po), options_.aic_upsample);
       if (p.valid) {
         onset = p.index;
         sigma = p.sigma;

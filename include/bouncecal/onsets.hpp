@@ -42,6 +42,7 @@ struct OnsetOptions {
   double aic_pre_s = 0.002;         // AIC window before the coarse onset
   double aic_post_s = 0.0008;       // AIC window after the coarse onset
   double sigma_floor_s = 2e-6;      // added in quadrature to the AIC curvature sigma
+  int aic_upsample = 1;             // band-limited upsampling of the AIC window (1 = none)
   double template_s = 0.0015;       // template length (whitened strongest impact)
   double template_threshold = 0.4;  // NCC above which a template match is a candidate (>= 1: off)
   bool IsValid(std::string* error) const;
@@ -74,7 +75,9 @@ struct AicPick {
 };
 // AIC change-point picker on x[begin, end): AIC(k) = k log var(x[begin..k]) +
 // (n-k-1) log var(x[k+1..end)) (Maeda 1985), parabolic interpolation of the minimum.
-AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end);
+// upsample > 1: the window is first interpolated band-limited (windowed sinc) by that factor,
+// so the change point is located on a finer grid than the samples.
+AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end, int upsample = 1);
 
 class OnsetDetector {
  public:

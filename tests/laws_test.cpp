@@ -2,9 +2,15 @@
 // the seed paper's relation, inverse maps, gradients, and every invalid-input case.
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
+#include <sys/wait.h>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <functional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -525,6 +531,59 @@ TEST(InvalidInput, ExpressionErrorsNameTheExpression) {
   ExpectBadParameter({"expression", {{"d", 1.0}}, "d"}, {"'d'", "reserved"});
   ExpectBadParameter({"expression", {{"k", std::nan("")}}, "k * d"}, {"k", "finite"});
   ExpectBadParameter({"expression", {{"k", 1.0}}, "k * d * (1 + v"}, {"k * d * (1 + v"});
+}
+
+// ------------------------------------------------------------------------ CLI: bouncecal laws
+struct CommandResult {
+  int exit_code;
+  std::string out, err;
+};
+
+CommandResult RunCli(const std::string& args) {
+  const std::string dir = ::testing::TempDir();
+  const std::string out_path = dir + "/laws_cli_out.txt", err_path = dir + "/laws_cli_err.txt";
+  const std::string cmd =
+      std::string(BOUNCECAL_BINARY) + " " + args + " >" + out_path + " 2>" + err_path;
+  const int status = std::system(cmd.c_str());
+  auto slurp = [](const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  return {WEXITSTATUS(status), slurp(out_path), slurp(err_path)};
+}
+
+TEST(LawsCli, JsonListsEveryRegisteredLawWithStableKeys) {
+  const CommandResult r = RunCli("laws --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j.at("laws").size(), RegisteredLaws().size());
+  size_t i = 0;
+  for (const LawInfo& info : RegisteredLaws()) {
+    const nlohmann::json& law = j["laws"][i++];
+    EXPECT_EQ(law.at("name"), info.name);
+    for (const char* key : {"formula", "source", "end_rule", "parameters", "closed_forms"}) {
+      EXPECT_TRUE(law.contains(key)) << info.name << " lacks " << key;
+    }
+    for (const nlohmann::json& p : law.at("parameters")) {
+      for (const char* key : {"name", "unit", "lower", "upper", "default", "damping"}) {
+        EXPECT_TRUE(p.contains(key)) << info.name << " parameter lacks " << key;
+      }
+    }
+  }
+  EXPECT_EQ(j["laws"][0]["closed_forms"][0], "restitution");
+}
+
+TEST(LawsCli, OneLawHumanAndUnknownLaw) {
+  const CommandResult one = RunCli("laws walton-braun");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  EXPECT_NE(one.out.find("gamma"), std::string::npos);
+  EXPECT_EQ(one.out.find("hertz-tsuji"), std::string::npos);
+  const CommandResult bad = RunCli("laws no-such-law");
+  EXPECT_EQ(bad.exit_code, static_cast<int>(ErrorCode::kBadParameter));
+  EXPECT_TRUE(bad.out.empty());
+  EXPECT_NE(bad.err.find("no-such-law"), std::string::npos);
 }
 
 // Printed last: the measured agreement of closed forms with the oracle (for the report).

@@ -62,11 +62,19 @@ LinearEnd<T> SolveLinearEnd(const T& k, const T& c, double m, bool force_zero) {
 
 class LinearDashpot final : public LawBase {
  public:
-  explicit LinearDashpot(bool force_zero) : force_zero_(force_zero) {
+  LinearDashpot(bool force_zero, double mass_kg) : force_zero_(force_zero) {
+    // Default c: e = 0.8 under the overlap-zero rule for the scene's ball with the default k.
+    constexpr double kDefaultK = 1e7;
+    const double ln_e = std::log(0.8);
+    const double zeta = -ln_e / std::sqrt(kPi * kPi + ln_e * ln_e);
+    const double c_default =
+        mass_kg > 0.0 && std::isfinite(mass_kg) ? 2.0 * zeta * std::sqrt(mass_kg * kDefaultK) : 0.0;
     specs_ = {
         Spec("k", "N/m", "spring stiffness (default 1e7 N/m, seed 002 k_n)", kStiffnessLower,
-             kStiffnessUpper, 1e7, false),
-        Spec("c", "N*s/m", "dashpot coefficient (default 0: elastic)", 0.0, 1e12, 0.0, true),
+             kStiffnessUpper, kDefaultK, false),
+        Spec("c", "N*s/m",
+             "dashpot coefficient (default: e = 0.8 for the scene's ball, overlap-zero rule)", 0.0,
+             1e12, c_default, true),
     };
   }
 
@@ -199,11 +207,11 @@ class LinearDashpot final : public LawBase {
 
 }  // namespace
 
-std::unique_ptr<LawBase> MakeLinearDashpot(const LawSpec&, const Scene&) {
-  return std::make_unique<LinearDashpot>(false);
+std::unique_ptr<LawBase> MakeLinearDashpot(const LawSpec&, const Scene& scene) {
+  return std::make_unique<LinearDashpot>(false, scene.ball.Mass());
 }
-std::unique_ptr<LawBase> MakeLinearDashpotForceZero(const LawSpec&, const Scene&) {
-  return std::make_unique<LinearDashpot>(true);
+std::unique_ptr<LawBase> MakeLinearDashpotForceZero(const LawSpec&, const Scene& scene) {
+  return std::make_unique<LinearDashpot>(true, scene.ball.Mass());
 }
 
 }  // namespace bouncecal::laws

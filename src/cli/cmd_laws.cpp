@@ -1,0 +1,133 @@
+// `bouncecal laws [--json] [--scene FILE] [NAME]`: every registered contact law with its
+// formula, source, end rule, parameters (unit, bounds, default, damping flag) and the closed
+// forms it provides. Defaults that depend on the scene (Hertz stiffness from the materials) are
+// shown for the given scene, or for the default scene (seed 002: 1 cm steel ball on copper).
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/error.hpp"
+#include "bouncecal/law_registry.hpp"
+#include "commands.hpp"
+
+namespace bouncecal::cli {
+namespace {
+
+struct LawsFlags {
+  bool json = false;
+  std::string scene_file;
+  std::string name;
+};
+
+// The expression law has no fixed parameters; it is listed with this example.
+LawSpec ListingSpec(const std::string& name) {
+  LawSpec spec;
+  spec.name = name;
+  if (name == "expression") {
+    spec.expression = "k * d^1.5 * (1 + alpha * v)";
+    spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
+  }
+  return spec;
+}
+
+const char* EndRuleName(ContactEnd end) {
+  return end == ContactEnd::kForceZero ? "force_zero" : "overlap_zero";
+}
+
+nlohmann::json Number(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+std::string Fmt(double v) {
+  if (v <= -1e300) return "-inf";
+  if (v >= 1e300) return "inf";
+  std::ostringstream os;
+  os << std::setprecision(6) << v;
+  return os.str();
+}
+
+void Run(const LawsFlags& f) {
+  const Scene scene = f.scene_file.empty() ? Scene{} : LoadSceneFile(f.scene_file);
+  std::vector<LawInfo> infos = RegisteredLaws();
+  if (!f.name.empty()) {
+    std::vector<LawInfo> one;
+    for (const LawInfo& i : infos) {
+      if (i.name == f.name) one.push_back(i);
+    }
+    if (one.empty()) CreateLaw(ListingSpec(f.name), scene);  // throws the "unknown law" error
+    infos = one;
+  }
+  nlohmann::json laws = nlohmann::json::array();
+  std::ostringstream text;
+  for (const LawInfo& info : infos) {
+    const std::unique_ptr<ContactLaw> law = CreateLaw(ListingSpec(info.name), scene);
+    nlohmann::json params = nlohmann::json::array();
+    for (const ParameterSpec& s : law->Parameters()) {
+      params.push_back({{"name", s.name},
+                        {"unit", s.unit},
+                        {"lower", Number(s.lower)},
+                        {"upper", Number(s.upper)},
+                        {"default", Number(s.default_value)},
+                        {"damping", s.damping},
+                        {"description", s.description}});
+    }
+    nlohmann::json entry = {{"name", info.name},
+                            {"summary", info.summary},
+                            {"formula", law->Formula()},
+                            {"source", law->Source()},
+                            {"end_rule", EndRuleName(law->EndRule())},
+                            {"state_size", law->StateSize()},
+                            {"parameters", params},
+                            {"closed_forms", law->ClosedForms()}};
+    if (info.name == "expression") entry["example_expression"] = ListingSpec(info.name).expression;
+    laws.push_back(entry);
+
+    text << info.name << " — " << info.summary << "\n";
+    text << "  " << law->Formula() << "\n";
+    text << "  source: " << law->Source() << "\n";
+    text << "  contact ends at: "
+         << (law->EndRule() == ContactEnd::kForceZero ? "force = 0" : "overlap = 0")
+         << (law->StateSize() > 0 ? "; internal state: " + std::to_string(law->StateSize()) : "")
+         << "\n";
+    if (info.name == "expression") {
+      text << "  parameters: any names you give (example below); d = overlap (m), v = rate (m/s)\n";
+    }
+    text << "  " << std::left << std::setw(8) << "param" << std::setw(10) << "unit" << std::setw(12)
+         << "default" << std::setw(24) << "bounds"
+         << "role\n";
+    for (const ParameterSpec& s : law->Parameters()) {
+      text << "  " << std::setw(8) << s.name << std::setw(10) << s.unit << std::setw(12)
+           << Fmt(s.default_value) << std::setw(24)
+           << ("[" + Fmt(s.lower) + ", " + Fmt(s.upper) + "]")
+           << (s.damping ? "damping (fitted)" : "held") << "\n";
+    }
+    std::string forms;
+    for (const std::string& c : law->ClosedForms()) forms += (forms.empty() ? "" : ", ") + c;
+    text << "  closed forms: " << (forms.empty() ? "none (integrated)" : forms) << "\n\n";
+  }
+  if (f.json) {
+    std::cout << nlohmann::json{{"laws", laws}}.dump(2) << "\n";
+  } else {
+    std::cout << text.str();
+  }
+}
+
+}  // namespace
+
+void RegisterLaws(CLI::App& app) {
+  auto flags = std::make_shared<LawsFlags>();
+  CLI::App* sub = app.add_subcommand(
+      "laws", "list the contact laws: parameters, units, bounds, defaults, closed forms");
+  sub->add_option("name", flags->name, "show only this law");
+  sub->add_option("--scene", flags->scene_file,
+                  "scene whose materials set the defaults (default: 1 cm steel ball on copper)");
+  sub->add_flag("--json", flags->json, "JSON on stdout");
+  sub->callback([flags]() { Run(*flags); });
+}
+
+}  // namespace bouncecal::cli

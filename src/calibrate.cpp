@@ -5,6 +5,7 @@
 #include "bouncecal/calibrate.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <iomanip>
@@ -13,6 +14,7 @@
 #include <memory>
 #include <numeric>
 #include <sstream>
+#include <thread>
 
 #include <ceres/ceres.h>
 #include <Eigen/Dense>
@@ -728,6 +730,14 @@ bool CalibrationOptions::IsValid(std::string* error) const {
     return fail("undetermined_relative_sigma = " + Fmt(undetermined_relative_sigma) +
                 " must be positive");
   }
+  if (!(comparison_rel_tolerance >= 1e-14 && comparison_rel_tolerance <= 1e-2)) {
+    return fail("comparison_rel_tolerance = " + Fmt(comparison_rel_tolerance) +
+                " must be in [1e-14, 1e-2]");
+  }
+  if (comparison_max_iterations < 1 || comparison_max_iterations > 10000) {
+    return fail("comparison_max_iterations = " + std::to_string(comparison_max_iterations) +
+                " must be in [1, 10000]");
+  }
   for (const auto& f : free_parameters) {
     if (std::find(fixed_parameters.begin(), fixed_parameters.end(), f) != fixed_parameters.end()) {
       return fail("parameter '" + f + "' is both freed and held");
@@ -1406,40 +1416,61 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
 
 // =============================================================================================
 std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& recordings,
-                                          const Scene& scene, const CalibrationOptions& options) {
-  std::vector<LawComparisonRow> rows;
+                                          const Scene& scene, const CalibrationOptions& options,
+                                          int jobs) {
+  struct Job {
+    Scene scene;
+    CalibrationOptions options;
+    LawComparisonRow row;
+  };
+  std::vector<Job> todo;
   for (const LawInfo& info : RegisteredLaws()) {
-    Scene s = scene;
+    Job job{scene, options, {}};
     if (info.name == scene.law.name) {
-      s.law = scene.law;
+      job.scene.law = scene.law;
     } else {
       if (info.name == "expression") continue;  // needs the user's expression
-      s.law = LawSpec{};
-      s.law.name = info.name;
+      job.scene.law = LawSpec{};
+      job.scene.law.name = info.name;
     }
-    CalibrationOptions o = options;
-    LawComparisonRow row;
-    row.fit.law = info.name;
-    row.fit.strategy = options.strategy;
-    row.fit.derivatives = options.derivatives;
+    job.options.rel_tolerance = std::max(options.rel_tolerance, options.comparison_rel_tolerance);
+    job.options.max_iterations =
+        std::min(options.max_iterations, options.comparison_max_iterations);
+    job.row.fit.law = info.name;
+    job.row.fit.strategy = options.strategy;
+    job.row.fit.derivatives = options.derivatives;
+    todo.push_back(std::move(job));
+  }
+  auto run = [&](Job& job) {
     try {
       // Keep only the --free/--fix names this law has.
-      auto law = CreateLaw(s.law, s);
+      auto law = CreateLaw(job.scene.law, job.scene);
       auto keep = [&](std::vector<std::string>& v) {
         v.erase(std::remove_if(v.begin(), v.end(),
                                [&](const std::string& n) { return law->ParameterIndex(n) < 0; }),
                 v.end());
       };
-      keep(o.free_parameters);
-      keep(o.fixed_parameters);
-      row.fit = Calibrate(recordings, s, o);
+      keep(job.options.free_parameters);
+      keep(job.options.fixed_parameters);
+      job.row.fit = Calibrate(recordings, job.scene, job.options);
     } catch (const Error& e) {
-      row.fit.outcome = FitOutcome::kFailed;
-      row.fit.message = e.what();
-      row.fit.aic = row.fit.bic = std::numeric_limits<double>::infinity();
+      job.row.fit.outcome = FitOutcome::kFailed;
+      job.row.fit.message = e.what();
+      job.row.fit.aic = job.row.fit.bic = std::numeric_limits<double>::infinity();
     }
-    rows.push_back(std::move(row));
-  }
+  };
+  std::atomic<size_t> next{0};
+  auto worker = [&]() {
+    for (size_t i = next++; i < todo.size(); i = next++) run(todo[i]);
+  };
+  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(todo.size())));
+  std::vector<std::thread> pool;
+  for (int t = 1; t < n; ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+
+  std::vector<LawComparisonRow> rows;
+  for (auto& j : todo) rows.push_back(std::move(j.row));
   std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
     const bool fa = a.fit.outcome == FitOutcome::kFailed;
     const bool fb = b.fit.outcome == FitOutcome::kFailed;
@@ -1448,15 +1479,40 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
   });
   const double best = rows.empty() ? 0.0 : rows.front().fit.aic;
   for (auto& r : rows) r.delta_aic = r.fit.aic - best;
+  // The best law at full precision, from its ranking optimum.
+  if (!rows.empty() && rows.front().fit.outcome != FitOutcome::kFailed) {
+    const bool already = options.rel_tolerance >= options.comparison_rel_tolerance &&
+                         options.max_iterations <= options.comparison_max_iterations;
+    if (!already) {
+      Scene s = rows.front().fit.scene;
+      CalibrationOptions o = options;
+      auto law = CreateLaw(s.law, s);
+      auto keep = [&](std::vector<std::string>& v) {
+        v.erase(std::remove_if(v.begin(), v.end(),
+                               [&](const std::string& nm) { return law->ParameterIndex(nm) < 0; }),
+                v.end());
+      };
+      keep(o.free_parameters);
+      keep(o.fixed_parameters);
+      o.seed_from_inverse_map = false;  // start from the ranking optimum
+      try {
+        const double t_rank = rows.front().fit.solve_time_s;
+        rows.front().fit = Calibrate(recordings, s, o);
+        rows.front().fit.solve_time_s += t_rank;
+      } catch (const Error&) {
+        // Keep the ranking fit: it is a valid (less precise) result.
+      }
+    }
+  }
   return rows;
 }
 
 std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
                                const std::vector<double>& speeds_m_s) {
   std::ostringstream os;
-  os << "| rank | law | outcome | fitted | rms | chi2/dof | AIC | dAIC | BIC |";
+  os << "| rank | law | outcome | fitted | rms | chi2/dof | AIC | dAIC | BIC | time (s) |";
   for (double v : speeds_m_s) os << " e(" << Fmt(v, 3) << " m/s) |";
-  os << "\n|---|---|---|---|---|---|---|---|---|";
+  os << "\n|---|---|---|---|---|---|---|---|---|---|";
   for (size_t i = 0; i < speeds_m_s.size(); ++i) os << "---|";
   os << "\n";
   int rank = 0;
@@ -1464,7 +1520,7 @@ std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
     const Calibration& c = r.fit;
     os << "| " << ++rank << " | " << c.law << " | " << FitOutcomeName(c.outcome) << " | ";
     if (c.outcome == FitOutcome::kFailed) {
-      os << c.message << " | | | | | |";
+      os << c.message << " | | | | | | |";
       for (size_t i = 0; i < speeds_m_s.size(); ++i) os << " |";
       os << "\n";
       continue;
@@ -1475,7 +1531,7 @@ std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
     }
     os << Join(fitted, " ") << " | " << FormatResidual(c.rms_residual, c.residual_unit) << " | "
        << Fmt(c.chi2_dof, 3) << " | " << Fmt(c.aic, 6) << " | " << Fmt(r.delta_aic, 4) << " | "
-       << Fmt(c.bic, 6) << " |";
+       << Fmt(c.bic, 6) << " | " << Fmt(c.solve_time_s, 3) << " |";
     // e(v) by interpolating the fitted table (log-linear in v), clamped to its range.
     for (double v : speeds_m_s) {
       double e = kNaN;

@@ -63,7 +63,9 @@ json OptionsJson(const CalibrationOptions& o) {
           {"use_drop", o.use_drop},
           {"seed_from_inverse_map", o.seed_from_inverse_map},
           {"e_of_v_points", o.e_of_v_points},
-          {"undetermined_relative_sigma", o.undetermined_relative_sigma}};
+          {"undetermined_relative_sigma", o.undetermined_relative_sigma},
+          {"comparison_rel_tolerance", o.comparison_rel_tolerance},
+          {"comparison_max_iterations", o.comparison_max_iterations}};
 }
 
 json ParamFileJson(const Calibration& c, const Provenance& prov, const json& options) {

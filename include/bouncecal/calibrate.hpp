@@ -76,6 +76,11 @@ struct CalibrationOptions {
   // A free parameter whose relative 1-sigma exceeds this (or that lies in the numerical null
   // space of the Jacobian) is reported undetermined.
   double undetermined_relative_sigma = 1.0;
+  // Law comparison (CompareLaws): every law is ranked with this simulator tolerance and
+  // iteration limit (ranking needs far less precision than the result), then the best law is
+  // refitted with rel_tolerance and max_iterations.
+  double comparison_rel_tolerance = 1e-7;
+  int comparison_max_iterations = 25;
   bool IsValid(std::string* error) const;
 };
 
@@ -166,13 +171,16 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
 
 // Law comparison: fits every registered law (starting from its defaults; the "expression" law
 // only when scene.law names it with an expression) and returns them ranked by AIC, best first.
-// A law whose fit throws gets outcome kFailed and its message; the others still run.
+// A law whose fit throws gets outcome kFailed and its message; the others still run. Ranking
+// fits use comparison_rel_tolerance / comparison_max_iterations; the best is refitted with the
+// full options (rows[0].fit is that refit). `jobs` laws are fitted concurrently.
 struct LawComparisonRow {
   Calibration fit;
   double delta_aic = 0.0;  // AIC - best AIC
 };
 std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& recordings,
-                                          const Scene& scene, const CalibrationOptions& options);
+                                          const Scene& scene, const CalibrationOptions& options,
+                                          int jobs = 1);
 // The ranked table as markdown-like text, with e(v) at `speeds` (m/s).
 std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
                                const std::vector<double>& speeds_m_s);

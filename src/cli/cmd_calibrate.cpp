@@ -276,7 +276,7 @@ void Run(const CalibrateArgs& a) {
   const nlohmann::json options_json = OptionsJson(opts);
 
   if (all) {
-    auto rows = CompareLaws(inputs, scene, opts);
+    auto rows = CompareLaws(inputs, scene, opts, a.jobs);
     if (rows.empty() || rows.front().fit.outcome == FitOutcome::kFailed) {
       throw Error(ErrorCode::kFitFailed, "no contact law could be fitted to these recordings" +
                                              (rows.empty() ? "" : ": " + rows.front().fit.message));
@@ -318,7 +318,9 @@ void Run(const CalibrateArgs& a) {
       }
     } else {
       std::cout << "law comparison (" << FitStrategyName(opts.strategy)
-                << " fit, ranked by AIC; e(v) at the lowest, middle and highest measured speed)\n"
+                << " fit, ranked by AIC at rtol " << opts.comparison_rel_tolerance
+                << ", best law refitted at rtol " << opts.rel_tolerance
+                << "; e(v) at the lowest, middle and highest measured speed)\n"
                 << LawComparisonTable(rows, speeds) << "\nbest: " << best.BriefReport() << "\n";
     }
     if (!a.output.empty() && best.outcome == FitOutcome::kConverged) {

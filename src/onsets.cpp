@@ -443,6 +443,9 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
   const std::size_t post =
       std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
   const double noise_var = std::max(res.noise_rms * res.noise_rms, 1e-30);
+  // Timing floor: the AIC pick keeps a bias of a fraction of a sample that depends on where the
+  // onset falls between samples (measured on rendered clicks, tests/onsets_test.cpp).
+  const double floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
   // tight: the coarse onset is already good to a few samples (template match).
   auto make_impact = [&](std::size_t centre, bool tight) {
     double onset = static_cast<double>(centre);
@@ -459,7 +462,7 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     }
     Impact imp;
     imp.time_s = onset / rate_hz_;
-    imp.sigma_s = std::hypot(sigma / rate_hz_, options_.sigma_floor_s);
+    imp.sigma_s = std::hypot(sigma / rate_hz_, floor_s);
     const std::size_t i0 =
         std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
     const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
@@ -533,15 +536,27 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
   const double t_ref = res.onsets[strongest].time_s;
   auto template_time = [&](double t_guess, double* c_out) {
     const long s0 = std::lround(t_guess * rate_hz_) - static_cast<long>(lead);
-    long best_l = -1;
-    double best_c = -2.0;
-    for (long l = std::max(1L, s0 - maxlag); l <= s0 + maxlag && l + 1 < static_cast<long>(n);
+    // Best NCC within +-maxlag of the guess; a farther one (up to 2 maxlag: the AIC may have
+    // jumped by ~0.5 ms) only if it is clearly better (ball ringing and echoes also match).
+    long best_l = -1, far_l = -1;
+    double best_c = -2.0, far_c = -2.0;
+    const long search = 2 * maxlag;
+    for (long l = std::max(1L, s0 - search); l <= s0 + search && l + 1 < static_cast<long>(n);
          ++l) {
       const double c = ncc(static_cast<std::size_t>(l));
-      if (c > best_c) {
+      const bool near = std::labs(l - s0) <= maxlag;
+      if (near && c > best_c) {
         best_c = c;
         best_l = l;
       }
+      if (!near && c > far_c) {
+        far_c = c;
+        far_l = l;
+      }
+    }
+    if (far_c > best_c + 0.15) {
+      best_c = far_c;
+      best_l = far_l;
     }
     *c_out = best_c;
     if (best_l < 1) return t_guess;
@@ -556,11 +571,14 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     const double tt = template_time(im.time_s, &c);
     if (c < 0.3) return;
     const double dev = std::fabs(im.time_s - tt);
-    if (dev > 1.0 / rate_hz_ + 2.0 * im.sigma_s) {
+    // Weak onsets (whitened SNR below weak_snr_db) with a clear template match: the template
+    // time is the more reliable one.
+    const bool weak = im.snr_db < options_.weak_snr_db && c >= 0.5;
+    if (weak || dev > 1.0 / rate_hz_ + 2.0 * im.sigma_s) {
       im.time_s = tt;
       // NCC peak precision ~ sqrt(1 - c^2) / c samples (scaled), plus the floor.
       const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - c * c)) / c;
-      im.sigma_s = std::hypot(sig_samples / rate_hz_, options_.sigma_floor_s);
+      im.sigma_s = std::hypot(sig_samples / rate_hz_, floor_s);
     }
   };
   if (options_.refine)

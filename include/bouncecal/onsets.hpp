@@ -32,19 +32,21 @@
 namespace bouncecal {
 
 struct OnsetOptions {
-  double hop_s = 0.0;               // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
-  int lpc_order = 32;               // whitening predictor order (0 = no whitening)
-  double threshold_mads = 4.0;      // threshold = running median + threshold_mads * MAD
-  double min_novelty_db = 2.5;      // and at least this flux (dB) above the running median
-  double median_window_s = 0.3;     // running-median window of the adaptive threshold
-  double min_gap_s = 0.0015;        // peaks closer than this: keep the stronger
-  bool refine = true;               // AIC sub-sample refinement (else: coarse frame time)
-  double aic_pre_s = 0.002;         // AIC window before the coarse onset
-  double aic_post_s = 0.0008;       // AIC window after the coarse onset
-  double sigma_floor_s = 2e-6;      // added in quadrature to the AIC curvature sigma
-  int aic_upsample = 1;             // band-limited upsampling of the AIC window (1 = none)
-  double template_s = 0.0015;       // template length (whitened strongest impact)
-  double template_threshold = 0.4;  // NCC above which a template match is a candidate (>= 1: off)
+  double hop_s = 0.0;                 // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
+  int lpc_order = 32;                 // whitening predictor order (0 = no whitening)
+  double threshold_mads = 4.0;        // threshold = running median + threshold_mads * MAD
+  double min_novelty_db = 2.5;        // and at least this flux (dB) above the running median
+  double median_window_s = 0.3;       // running-median window of the adaptive threshold
+  double min_gap_s = 0.0015;          // peaks closer than this: keep the stronger
+  bool refine = true;                 // AIC sub-sample refinement (else: coarse frame time)
+  double aic_pre_s = 0.002;           // AIC window before the coarse onset
+  double aic_post_s = 0.0008;         // AIC window after the coarse onset
+  double sigma_floor_s = 2e-6;        // sigma floor (quadrature), s ...
+  double sigma_floor_samples = 0.25;  // ... or this many samples, whichever is larger
+  double weak_snr_db = 12.0;          // below: a clear template match times the onset
+  int aic_upsample = 1;               // band-limited upsampling of the AIC window (1 = none)
+  double template_s = 0.0015;         // template length (whitened strongest impact)
+  double template_threshold = 0.4;    // NCC above which a template match is a candidate (>= 1: off)
   bool IsValid(std::string* error) const;
 };
 

@@ -968,6 +968,14 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
         } catch (const Error&) {
         }
       }
+      if (!fixed_v0 && options.start_impact_speeds_m_s.size() == recordings.size() &&
+          options.start_impact_speeds_m_s[r] > 0.0) {
+        fp.v0[r] = options.start_impact_speeds_m_s[r];
+      }
+      if (options.start_time_origins_s.size() == recordings.size() &&
+          std::isfinite(options.start_time_origins_s[r])) {
+        fp.t0[r] = options.start_time_origins_s[r];
+      }
       fp.v0_free[r] = !fixed_v0.has_value();
       for (int k = 0; k < static_cast<int>(imp.size()); ++k) {
         auto* cost = new ImpactTimeCost(fp.models[r].get(), k, nfree, fixed_v0);
@@ -1315,7 +1323,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   notes.push_back(seed_note);
   if (c.chi2_dof > 10.0) {
     notes.push_back("chi2/dof = " + Fmt(c.chi2_dof, 3) +
-                    ": the law does not describe these impacts within their timing sigmas "
+                    ": the law does not describe these data within their sigmas "
                     "(sigmas scaled by sqrt(chi2/dof); compare laws with --law all)");
   }
   if (summary.termination_type == ceres::NO_CONVERGENCE) {
@@ -1495,12 +1503,22 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
       keep(o.free_parameters);
       keep(o.fixed_parameters);
       o.seed_from_inverse_map = false;  // start from the ranking optimum
+      for (const auto& rf : rows.front().fit.recordings) {
+        o.start_impact_speeds_m_s.push_back(rf.impact_speed_m_s);
+        o.start_time_origins_s.push_back(rf.time_origin_s);
+      }
       try {
         const double t_rank = rows.front().fit.solve_time_s;
-        rows.front().fit = Calibrate(recordings, s, o);
-        rows.front().fit.solve_time_s += t_rank;
+        Calibration refit = Calibrate(recordings, s, o);
+        refit.solve_time_s += t_rank;
+        // Keep the ranking fit if the refit did not improve on it (it is a valid, less
+        // precise result; the tolerances differ, so allow for their noise).
+        if (refit.chi2 <= rows.front().fit.chi2 * (1.0 + 1e-3) + 1e-6) {
+          const double shift = refit.aic - rows.front().fit.aic;
+          rows.front().fit = std::move(refit);
+          for (size_t i = 1; i < rows.size(); ++i) rows[i].delta_aic -= shift;
+        }
       } catch (const Error&) {
-        // Keep the ranking fit: it is a valid (less precise) result.
       }
     }
   }

@@ -79,6 +79,10 @@ struct CalibrationOptions {
   // Law comparison (CompareLaws): every law is ranked with this simulator tolerance and
   // iteration limit (ranking needs far less precision than the result), then the best law is
   // refitted with rel_tolerance and max_iterations.
+  // Trajectory start values of the nuisances per recording (first impact speed, time origin);
+  // empty: estimated from the first interval and the first onset.
+  std::vector<double> start_impact_speeds_m_s;
+  std::vector<double> start_time_origins_s;
   double comparison_rel_tolerance = 1e-7;
   int comparison_max_iterations = 25;
   bool IsValid(std::string* error) const;

@@ -1,6 +1,6 @@
 // bench_calibrate — what calibration accuracy costs in time, and the seed paper's numbers.
 //
-// Prints markdown tables (measured on this machine, one thread):
+// Prints markdown tables (measured on this machine, one thread; times are thread CPU time):
 //  1. strategy (trajectory / restitution) x derivatives (auto / numeric) x simulator tolerance:
 //     damping error against the truth (RMS over seeded noisy data sets), mean reported sigma,
 //     iterations, simulations and run time per fit;
@@ -10,6 +10,8 @@
 //     mean eta = 0.58 (paper: gamma = 0.5 by a five-value sweep; its simulation gave 0.598).
 //
 // Usage: bench_calibrate [--quick]
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -32,8 +34,11 @@ using namespace bouncecal;
 
 namespace {
 
+// Thread CPU time: what one core spends, independent of other processes on a shared machine.
 double Now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 Scene SteelScene(const std::string& law) {
@@ -214,7 +219,7 @@ void SeedPaper() {
   const FlightModel f = FlightModel::Vacuum(9.8);
   const double dt0 = f.FlightTime(f.FallArrivalSpeed(0.2));
   std::printf(
-      "| first (silent) interval dt0 = 2 sqrt(2h/g), h = 0.2 m, g = 9.8 | %.4f s | "
+      "| first (silent) interval dt0 = 2 sqrt(2h/g), h = 0.2 m, g = 9.8 | %.5f s | "
       "0.4040 s | exact flight formulas |\n",
       dt0);
   Scene s = SteelScene("walton-braun");

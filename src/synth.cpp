@@ -553,6 +553,12 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
   for (const ChannelSpec& c : options.channels) max_delay = std::max(max_delay, c.delay_s);
   last_onset += options.latency_s + max_delay;
   const double rate = options.sample_rate_hz;
+  std::size_t impact_count = 0;
+  for (const auto& d : drops) impact_count += d.size();
+  if (impact_count == 0 && !(options.duration_s > 0)) {
+    throw Error(ErrorCode::kBadParameter,
+                "render: no impacts; give duration_s to render noise, hum and distractors only");
+  }
   double duration = options.duration_s > 0 ? options.duration_s : last_onset + options.tail_s;
   if (options.duration_s > 0 && last_onset >= options.duration_s) {
     throw Error(ErrorCode::kBadParameter,
@@ -597,10 +603,11 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
   for (std::size_t c = 0; c < nch; ++c) {
     for (double v : clean[c]) unit_peak = std::max(unit_peak, std::fabs(v));
   }
-  if (!(unit_peak > 0.0)) {
-    throw Error(ErrorCode::kBadParameter, "render: the impacts make no sound (no impacts?)");
+  if (impact_count > 0 && !(unit_peak > 0.0)) {
+    throw Error(ErrorCode::kBadParameter, "render: the impacts make no sound");
   }
-  const double scale = options.peak_level / unit_peak;
+  // Without impacts the levels (noise, hum, distractors) stay relative to peak_level.
+  const double scale = impact_count > 0 ? options.peak_level / unit_peak : 0.0;
 
   Recording rec;
   rec.sample_rate_hz = rate;

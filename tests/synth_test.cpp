@@ -297,6 +297,32 @@ TEST(Render, ChannelsHearTheModesDifferentlyWithModeSpread) {
   EXPECT_EQ(imp.channel_amplitude[0], imp.amplitude);
 }
 
+TEST(Render, NoImpactsGivesNoiseHumAndDistractorsOnly) {
+  RenderOptions o = Quiet(16000);
+  o.snr_db = 30.0;
+  o.distractors = 3;
+  try {
+    RenderRecording(std::vector<TruthImpact>{}, o);
+    FAIL() << "no impacts and no duration accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kBadParameter);
+  }
+  o.duration_s = 2.0;
+  const Recording r = RenderRecording(std::vector<TruthImpact>{}, o);
+  ASSERT_EQ(r.channels[0].size(), 32000u);
+  EXPECT_TRUE(r.drops.empty() || r.drops[0].empty());
+  EXPECT_EQ(r.distractors.size(), 3u);
+  double s2 = 0;
+  for (float v : r.channels[0]) s2 += double(v) * v;
+  // Noise (0.5 * 10^-1.5 RMS) plus three short bursts: the RMS is the noise's within 20 %.
+  EXPECT_NEAR(std::sqrt(s2 / 32000.0), 0.5 * std::pow(10.0, -1.5),
+              0.2 * 0.5 * std::pow(10.0, -1.5));
+  o.snr_db.reset();
+  o.distractors = 0;
+  const Recording silent = RenderRecording(std::vector<TruthImpact>{}, o);
+  for (float v : silent.channels[0]) ASSERT_EQ(v, 0.0f);
+}
+
 TEST(Render, TruthIsIndependentOfTheSampleRate) {
   std::vector<std::vector<TruthImpact>> truths;
   for (double rate : {16000.0, 48000.0, 96000.0}) {

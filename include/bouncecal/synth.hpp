@@ -173,8 +173,10 @@ struct Recording {
   double duration_s() const;
 };
 
-// Renders the drops (each a list of impacts in time order) into a recording. Throws
-// Error(kBadParameter) for invalid options or impacts (negative times, NaN, ...).
+// Renders the drops (each a list of impacts in time order) into a recording. With no impacts
+// at all (and options.duration_s > 0) it renders only noise, hum and distractors, at the levels
+// they would have next to impacts peaking at peak_level. Throws Error(kBadParameter) for
+// invalid options or impacts (negative times, NaN, ...).
 Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
                           const RenderOptions& options);
 inline Recording RenderRecording(const std::vector<TruthImpact>& one_drop,

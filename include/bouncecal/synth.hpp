@@ -125,10 +125,17 @@ struct RenderOptions {
   double sample_rate_hz = 48000.0;  // 8 kHz .. 384 kHz
   std::vector<ChannelSpec> channels{ChannelSpec{}};
   std::vector<Mode> plate_modes = PlateModes("copper-dish");
-  std::vector<Mode> ball_modes;     // the ball's own ringing (optional)
-  double click_gain = 0.3;          // direct broadband click (band-limited force pulse)
-  double amplitude_exponent = 1.0;  // force impulse scale ~ v_in^a (a = 1: momentum)
-  double peak_level = 0.5;          // the clean signal is scaled so its peak is this
+  std::vector<Mode> ball_modes;  // the ball's own ringing (optional)
+  // Direct click: the force pulse itself, averaged over each sample period (causal, so the
+  // sound never starts before the onset). A pulse much shorter than a sample gives, at 48 kHz,
+  // a one-sample click of click_gain * v_in^a, on the scale where a mode of gain 1 struck by
+  // the same impulse rings with amplitude v_in^a. Higher rates resolve a taller, narrower click.
+  double click_gain = 0.3;
+  // Impulse of each impact ~ v_in^a (a = 1: momentum transfer; the amplitude of the modes
+  // follows). The contact duration (TruthImpact::contact_s) shapes the spectrum: a long, soft
+  // pulse (rubber, ~1.4 ms) barely excites modes above ~1/contact_s.
+  double amplitude_exponent = 1.0;
+  double peak_level = 0.5;  // the clean signal (all channels / their gains) peaks at this
   // Noise: snr_db = 20 log10(peak_level / noise RMS) where peak_level is the clean peak of a
   // gain-1 channel; the noise (microphone/preamp) has the same RMS in every channel, so a
   // channel with gain g has an SNR of snr_db + 20 log10(g). Unset = no noise.

@@ -1,6 +1,6 @@
 // bench_detect — detection accuracy and speed on a rendered corpus, side by side with aubioonset.
 //
-//   build/bench_detect                 # default: 6 presets x 3 seeds, aubio if installed
+//   build/bench_detect                 # default: 6 presets x 5 seeds, aubio if installed
 //   build/bench_detect --seeds 5 --no-aubio --keep /tmp/corpus
 //
 // Corpus: the synth presets (synth.hpp) "steel-copper", "glass-glass", "pingpong-wood",
@@ -296,7 +296,7 @@ void PrintAccuracyRow(const std::string& preset, const std::string& who, const M
 }  // namespace
 
 int main(int argc, char** argv) {
-  int seeds = 3;
+  int seeds = 5;
   bool use_aubio = true;
   std::string keep;
   for (int i = 1; i < argc; ++i) {

@@ -29,6 +29,7 @@ struct Options {
   double rel_tol = 1e-12;
   double g_m_s2 = 0.0;        // gravity pushing the ball into the surface
   double max_time_s = 1e300;  // declare "stuck" beyond this
+  long max_steps = 1000000;   // or beyond this many steps
   // Optional extra integral (e.g. the heat of Jiang-Liu): d(extra)/dt = extra_rate(delta,
   // delta_dot, law state).
   std::function<double(double, double, const double*)> extra_rate;
@@ -123,7 +124,7 @@ inline Result Integrate(const bouncecal::ContactLaw& law, std::span<const double
       branch = !branch;
       dense.initialize(mid, ts, (t1 - t0) * 1e-3);
     }
-    if (t1 > opt.max_time_s) {
+    if (t1 > opt.max_time_s || r.steps >= opt.max_steps) {
       r.stuck = true;
       r.contact_time_s = t1;
       r.extra = b[n - 1];

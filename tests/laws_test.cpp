@@ -463,6 +463,52 @@ TEST(Registry, EveryLawIsCompleteAndConsistent) {
   }
 }
 
+// ------------------------------------------------------------------------ hard cases
+// Every law at the extremes of issue 3 (stiffness 1e3 and 1e12 in the law's units, masses 1 mg
+// and 10 kg, impact speeds 1 mm/s and 10 m/s, e 0.01 and 0.999 where an inverse map exists):
+// the oracle must finish in a bounded number of steps with a finite e in [0, 1] (no energy
+// gained), and the closed forms must stay finite.
+TEST(HardCases, ExtremeParametersStayFiniteAndDissipative) {
+  for (const LawInfo& info : RegisteredLaws()) {
+    for (double k : {1e3, 1e12}) {
+      for (double mass : {1e-6, 10.0}) {
+        for (double v : {1e-3, 10.0}) {
+          LawSpec spec = ListingSpec(info.name);
+          const std::string stiffness = info.name == "walton-braun-hysteretic" ? "k1" : "k";
+          spec.parameters[stiffness] = k;
+          if (info.name == "walton-braun-hysteretic") spec.parameters["k2"] = 1.5 * k;
+          Scene scene = SteelScene();
+          scene.ball.mass_kg = mass;
+          scene.ball.density_kg_m3.reset();
+          auto law = CreateLaw(spec, scene);
+          const ContactBody body = BodyFromScene(scene);
+          std::vector<std::vector<double>> params = {law->ParameterValues()};
+          for (double e : {0.01, 0.999}) {
+            if (auto q = law->DampingForRestitution(law->ParameterValues(), body, e, v)) {
+              params.push_back(*q);
+            }
+          }
+          for (const auto& p : params) {
+            std::string why;
+            if (!law->IsValid(p, body, &why)) continue;  // e.g. e = 0.01 below a law's bound
+            const auto r = oracle::Integrate(*law, p, body, v);
+            const std::string where = info.name + " k " + std::to_string(k) + " m " +
+                                      std::to_string(mass) + " v " + std::to_string(v);
+            ASSERT_FALSE(r.stuck) << where;
+            EXPECT_TRUE(std::isfinite(r.restitution)) << where;
+            EXPECT_GE(r.restitution, 0.0) << where;
+            EXPECT_LE(r.restitution, 1.0 + 1e-9) << where;
+            EXPECT_LT(r.steps, 20000) << where;
+            if (auto e = law->Restitution(p, body, v)) {
+              EXPECT_LT(std::abs(*e - r.restitution), 1e-6) << where;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
 // ------------------------------------------------------------------------ invalid input
 void ExpectBadParameter(const LawSpec& spec, const std::vector<std::string>& fragments,
                         const Scene& scene = SteelScene()) {

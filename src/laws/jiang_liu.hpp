@@ -16,7 +16,7 @@ double JiangLiuA(std::span<const double> p, const ContactBody& body);
 double JiangLiuTau(std::span<const double> p, const ContactBody& body);
 // Smooth Heaviside Theta(x) = [tanh((x - x0)/x1) + 1]/2 (seed 000, below eq. 41), x = delta/d.
 double JiangLiuTheta(double x);
-constexpr double kJiangLiuX0 = 3e-7;
-constexpr double kJiangLiuX1 = 1e-7;
+constexpr double kJiangLiuX0 = 5e-12;  // relative to d: far below any overlap of interest
+constexpr double kJiangLiuX1 = 1e-12;
 
 }  // namespace bouncecal::laws

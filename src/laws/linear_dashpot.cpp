@@ -62,13 +62,15 @@ LinearEnd<T> SolveLinearEnd(const T& k, const T& c, double m, bool force_zero) {
 
 class LinearDashpot final : public LawBase {
  public:
-  LinearDashpot(bool force_zero, double mass_kg) : force_zero_(force_zero) {
-    // Default c: e = 0.8 under the overlap-zero rule for the scene's ball with the default k.
-    constexpr double kDefaultK = 1e7;
+  LinearDashpot(bool force_zero, double mass_kg, double k_n_m) : force_zero_(force_zero) {
+    // Default c: e = 0.8 under the overlap-zero rule for the scene's ball and the k in use.
+    const double kDefaultK = 1e7;
     const double ln_e = std::log(0.8);
     const double zeta = -ln_e / std::sqrt(kPi * kPi + ln_e * ln_e);
     const double c_default =
-        mass_kg > 0.0 && std::isfinite(mass_kg) ? 2.0 * zeta * std::sqrt(mass_kg * kDefaultK) : 0.0;
+        mass_kg > 0.0 && std::isfinite(mass_kg) && k_n_m > 0.0 && std::isfinite(k_n_m)
+            ? 2.0 * zeta * std::sqrt(mass_kg * k_n_m)
+            : 0.0;
     specs_ = {
         Spec("k", "N/m", "spring stiffness (default 1e7 N/m, seed 002 k_n)", kStiffnessLower,
              kStiffnessUpper, kDefaultK, false),
@@ -207,11 +209,18 @@ class LinearDashpot final : public LawBase {
 
 }  // namespace
 
-std::unique_ptr<LawBase> MakeLinearDashpot(const LawSpec&, const Scene& scene) {
-  return std::make_unique<LinearDashpot>(false, scene.ball.Mass());
+namespace {
+double GivenK(const LawSpec& spec) {
+  const auto it = spec.parameters.find("k");
+  return it == spec.parameters.end() ? 1e7 : it->second;
 }
-std::unique_ptr<LawBase> MakeLinearDashpotForceZero(const LawSpec&, const Scene& scene) {
-  return std::make_unique<LinearDashpot>(true, scene.ball.Mass());
+}  // namespace
+
+std::unique_ptr<LawBase> MakeLinearDashpot(const LawSpec& spec, const Scene& scene) {
+  return std::make_unique<LinearDashpot>(false, scene.ball.Mass(), GivenK(spec));
+}
+std::unique_ptr<LawBase> MakeLinearDashpotForceZero(const LawSpec& spec, const Scene& scene) {
+  return std::make_unique<LinearDashpot>(true, scene.ball.Mass(), GivenK(spec));
 }
 
 }  // namespace bouncecal::laws

@@ -6,8 +6,9 @@
 // (law_registry.hpp) from a name and a parameter map; they hold no global state, so every
 // thread or job creates its own.
 //
-//   auto law = CreateLaw("hertz-tsuji", {{"k", 1e9}, {"e", 0.8}});   // law_registry.hpp
-//   ContactBody body = ContactBody::BallOnRigidWall(mass, radius);
+//   LawSpec spec{"hertz-tsuji", {{"k", 1e9}, {"e", 0.8}}, ""};
+//   auto law = CreateLaw(spec, scene);                                  // law_registry.hpp
+//   ContactBody body = BodyFromScene(scene);                            // m* = m, R* = R
 //   std::vector<double> p = law->ParameterValues();
 //   double e = law->Restitution(p, body, 1.5).value();                 // closed form, if any
 //

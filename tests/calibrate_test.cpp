@@ -395,6 +395,29 @@ TEST(Calibrate, ImpactsFlaggedMissedByTheDetectorKeepTheSimulatedIndex) {
   EXPECT_GT(bad.chi2_dof, 100.0);
 }
 
+TEST(Calibrate, QuadraticDragIsFittedWhenTheSceneTurnsItOn) {
+  // A ping-pong ball (40 mm, 2.7 g) from 0.5 m: drag changes every flight by percents.
+  Scene truth = SteelScene("walton-braun", {{"gamma", 0.15}, {"k", 2e4}});
+  truth.ball.diameter_m = 0.04;
+  truth.ball.mass_kg = 0.0027;
+  truth.ball.density_kg_m3.reset();
+  truth.effects.drag = DragModel::kQuadratic;
+  truth.drop.height_m = 0.5;
+  const Sequence seq = MeasuredFromSimulation(truth, 15, 5e-6, 3);
+  Scene start = truth;
+  start.law.parameters = {{"k", 2e4}};
+  const Calibration c = Calibrate({{"pingpong", seq}}, start, {});
+  EXPECT_TRUE(c.analytic_jacobian);
+  EXPECT_NEAR(Param(c, "gamma").value, 0.15, 3 * Param(c, "gamma").sigma + 1e-6);
+  EXPECT_LT(c.chi2_dof, 3.0);
+  // The same data fitted without drag: biased, and chi2 says so.
+  start.effects.drag = DragModel::kNone;
+  const Calibration nd = Calibrate({{"pingpong", seq}}, start, {});
+  EXPECT_GT(std::abs(Param(nd, "gamma").value - 0.15), 0.005);
+  EXPECT_GT(nd.chi2_dof, 1000.0);
+  EXPECT_NE(nd.message.find("does not describe"), std::string::npos);
+}
+
 TEST(Calibrate, RobustLossKeepsOneBadImpactFromDraggingTheFit) {
   const Scene truth = SteelScene("walton-braun", {{"gamma", 0.35}});
   Sequence seq = MeasuredFromSimulation(truth, 14, 5e-6, 21);

@@ -1403,11 +1403,14 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
     }
   }
 
-  c.outcome = damping_undetermined ? FitOutcome::kNotDeterminable : FitOutcome::kConverged;
-  if (damping_undetermined) {
+  bool any_determined = false;
+  for (const auto& p : c.parameters) any_determined |= !p.fixed && p.determined;
+  const bool not_determinable = damping_undetermined || !any_determined;
+  c.outcome = not_determinable ? FitOutcome::kNotDeterminable : FitOutcome::kConverged;
+  if (not_determinable) {
     std::vector<std::string> names;
     for (const auto& p : c.parameters) {
-      if (!p.fixed && !p.determined && p.damping) names.push_back(p.name);
+      if (!p.fixed && !p.determined && (p.damping || !any_determined)) names.push_back(p.name);
     }
     notes.insert(notes.begin(), "the data cannot determine " + Join(names));
   }

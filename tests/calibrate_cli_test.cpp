@@ -154,6 +154,14 @@ TEST(CalibrateCli, BadInputGivesOneLineAndTheRightCode) {
   EXPECT_EQ(Lines(conflict.err), 1) << conflict.err;
 }
 
+TEST(CalibrateCli, RepeatableOptionsDoNotSwallowTheRecording) {
+  const CliRun r = Exec("calibrate --free k " + kRecording + " --scene " + kScene + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j.at("parameters").at("k").at("fixed"), false);
+  EXPECT_EQ(j.at("provenance").at("options").at("free_parameters"), nlohmann::json::array({"k"}));
+}
+
 TEST(CalibrateCli, LawComparisonRanksLaws) {
   const CliRun r = Exec("calibrate --law all --csv " + kRecording + " --scene " + kScene);
   ASSERT_EQ(r.code, 0) << r.err;

@@ -363,8 +363,11 @@ void RegisterCalibrate(CLI::App& app) {
   AddSceneFlags(sub, &args->scene, true);
   sub->add_option("--strategy", args->strategy,
                   "trajectory (fit simulated impact times) or restitution (fit e(v) points)");
-  sub->add_option("--free", args->free, "also fit this held parameter, e.g. k (repeatable)");
-  sub->add_option("--fix", args->fix, "hold this damping parameter at its scene value");
+  // One value per occurrence, so `--free k drop.wav` does not swallow the recording.
+  sub->add_option("--free", args->free, "also fit this held parameter, e.g. k (repeatable)")
+      ->allow_extra_args(false);
+  sub->add_option("--fix", args->fix, "hold this damping parameter at its scene value")
+      ->allow_extra_args(false);
   sub->add_option("--derivatives", args->derivatives, "auto (analytic where possible) or numeric");
   sub->add_option("--rtol", args->rtol, "simulator relative tolerance inside the fit");
   sub->add_option("--loss", args->loss, "robust loss: huber, cauchy or none");

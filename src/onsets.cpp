@@ -330,6 +330,8 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
   OnsetResult res;
   res.hop_samples = hop_;
   res.window_samples = window_;
+  res.rate_hz = rate_hz_;
+  res.sigma_floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
   res.whitened = Whiten(x, options_.lpc_order);
   const std::vector<float>& w = res.whitened;
   res.noise_rms = RobustRms(w);
@@ -516,6 +518,9 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     hh += h[j] * h[j];
   }
   if (!(hh > 0.0)) return res;
+  res.template_wave = h;
+  res.template_start = ref_start;
+  res.template_onset_s = res.onsets[strongest].time_s;
   const std::vector<double> xc = corr_->Correlate(w, h);
   std::vector<double> e2(n + 1, 0.0);  // prefix sums of w^2
   for (std::size_t i = 0; i < n; ++i) e2[i + 1] = e2[i] + static_cast<double>(w[i]) * w[i];
@@ -626,6 +631,70 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
                 [](const Impact& a, const Impact& b) { return a.time_s < b.time_s; });
   }
   return res;
+}
+
+bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
+                    double half_window_s, double min_ncc, Impact* out) {
+  const std::vector<double>& h = r.template_wave;
+  const std::vector<float>& w = r.whitened;
+  if (h.empty() || !(r.rate_hz > 0.0) || w.size() != x.size()) return false;
+  const long n = static_cast<long>(w.size()), tl = static_cast<long>(h.size());
+  double hh = 0.0;
+  for (double v : h) hh += v * v;
+  if (!(hh > 0.0)) return false;
+  // Template start l <-> onset t_ref + (l - template_start) / rate.
+  auto start_of = [&](double t) {
+    return r.template_start + std::lround((t - r.template_onset_s) * r.rate_hz);
+  };
+  const long lo = std::max(1L, start_of(t_center_s - half_window_s));
+  const long hi = std::min(n - tl - 2, start_of(t_center_s + half_window_s));
+  if (hi < lo) return false;
+  auto ncc = [&](long l) {
+    double xy = 0.0, yy = 0.0;
+    for (long j = 0; j < tl; ++j) {
+      const double y = w[static_cast<std::size_t>(l + j)];
+      xy += h[static_cast<std::size_t>(j)] * y;
+      yy += y * y;
+    }
+    return yy > 0.0 ? xy / std::sqrt(hh * yy) : 0.0;
+  };
+  long best_l = -1;
+  double best_c = -2.0;
+  for (long l = lo; l <= hi; ++l) {
+    const double c = ncc(l);
+    if (c > best_c) {
+      best_c = c;
+      best_l = l;
+    }
+  }
+  if (best_l < 1 || best_c < min_ncc) return false;
+  const double cm = ncc(best_l - 1), cp = ncc(best_l + 1);
+  const double curv = cm - 2.0 * best_c + cp;
+  const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
+  Impact imp;
+  imp.time_s =
+      r.template_onset_s + (static_cast<double>(best_l - r.template_start) + d) / r.rate_hz;
+  const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - best_c * best_c)) / best_c;
+  imp.sigma_s = std::hypot(sig_samples / r.rate_hz, r.sigma_floor_s);
+  imp.score = std::clamp(best_c, 0.0, 1.0);
+  const long i0 = std::clamp(std::lround(imp.time_s * r.rate_hz), 0L, n - 1);
+  const long len_post = std::max(8L, static_cast<long>(0.0005 * r.rate_hz));
+  const long len_pre = static_cast<long>(0.01 * r.rate_hz);
+  double amp = 0.0, e_post = 0.0, e_pre = 0.0;
+  long c_post = 0, c_pre = 0;
+  for (long i = i0; i < std::min(n, i0 + static_cast<long>(0.003 * r.rate_hz) + 1); ++i)
+    amp = std::max(amp, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
+  for (long i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
+    e_post += static_cast<double>(w[static_cast<std::size_t>(i)]) * w[static_cast<std::size_t>(i)];
+  for (long i = std::max(0L, i0 - 2 - len_pre); i < i0 - 2; ++i, ++c_pre)
+    e_pre += static_cast<double>(w[static_cast<std::size_t>(i)]) * w[static_cast<std::size_t>(i)];
+  imp.amplitude = amp;
+  const double floor_var = std::max(r.noise_rms * r.noise_rms, 1e-30);
+  const double p_post = c_post ? e_post / static_cast<double>(c_post) : 0.0;
+  const double p_pre = c_pre ? e_pre / static_cast<double>(c_pre) : floor_var;
+  imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * floor_var) + 1e-30));
+  *out = imp;
+  return true;
 }
 
 }  // namespace bouncecal

@@ -448,22 +448,27 @@ int main(int argc, char** argv) {
   // 4. Accuracy vs cost of the detection settings (first seed of every preset).
   std::printf("\n## Accuracy vs cost of detection settings (1 seed per preset)\n\n");
   std::printf(
-      "| hop (ms) | refine | LPC order | recall | precision | interval err median (µs) | "
-      "p95 (µs) | × real time |\n|---|---|---|---|---|---|---|---|\n");
+      "| hop (ms) | refine | LPC order | guided search | recall | precision | interval err median "
+      "(µs) | "
+      "p95 (µs) | × real time |\n|---|---|---|---|---|---|---|---|---|\n");
   struct Setting {
     double hop_ms;
     bool refine;
     int lpc;
+    bool guided;
   };
-  const std::vector<Setting> settings = {{0.17, true, 32}, {0.33, true, 32},  {0.67, true, 32},
-                                         {1.33, true, 32}, {0.33, false, 32}, {0.67, false, 32},
-                                         {0.33, true, 16}, {0.33, true, 48},  {0.33, true, 0}};
+  const std::vector<Setting> settings = {{0.17, true, 32, true},  {0.33, true, 32, true},
+                                         {0.67, true, 32, true},  {1.33, true, 32, true},
+                                         {0.33, false, 32, true}, {0.67, false, 32, true},
+                                         {0.33, true, 32, false}, {0.33, true, 16, true},
+                                         {0.33, true, 48, true},  {0.33, true, 0, true}};
   for (const Setting& s : settings) {
     Metrics tot;
     DetectOptions o;
     o.hop_s = s.hop_ms * 1e-3;
     o.refine = s.refine;
     o.lpc_order = s.lpc;
+    o.guided_search = s.guided;
     for (const Corpus& c : corpus) {
       if (c.seed != static_cast<int>(SynthPreset(c.preset).render.seed)) continue;
       const RunOut r = RunBouncecal(c.audio, o, 2);
@@ -475,8 +480,9 @@ int main(int argc, char** argv) {
     std::vector<double> abs_err;
     for (double v : tot.interval_err_us) abs_err.push_back(std::fabs(v));
     std::printf(
-        "| %.2f | %s | %d | %s | %s | %s | %s | %.0f× |\n", s.hop_ms, s.refine ? "on" : "off",
-        s.lpc, F("%.3f", tot.eligible ? double(tot.matched_eligible) / tot.eligible : NAN).c_str(),
+        "| %.2f | %s | %d | %s | %s | %s | %s | %s | %.0f× |\n", s.hop_ms, s.refine ? "on" : "off",
+        s.lpc, s.guided ? "on" : "off",
+        F("%.3f", tot.eligible ? double(tot.matched_eligible) / tot.eligible : NAN).c_str(),
         F("%.3f", tot.detections ? double(tot.matched_detections) / tot.detections : NAN).c_str(),
         F("%.1f", Quantile(abs_err, 0.5)).c_str(), F("%.1f", Quantile(abs_err, 0.95)).c_str(),
         tot.audio_s / tot.time_s);

@@ -40,6 +40,7 @@ struct DetectOptions {
   bool refine = true;             // sub-sample change-point refinement
   int min_sequence_impacts = 3;   // fewer than this: not a bounce sequence
   double min_interval_s = 0.003;  // impacts closer than this are not resolvable
+  bool guided_search = true;      // look again where the tracker expects the next impact
   int lpc_order = 32;             // whitening predictor order (onsets.hpp)
   bool IsValid(std::string* error) const;
 };

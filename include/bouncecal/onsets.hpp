@@ -58,7 +58,21 @@ struct OnsetResult {
   int hop_samples = 0;
   int window_samples = 0;
   double noise_rms = 0.0;  // robust rms of the whitened signal
+  // The template (whitened waveform of the strongest onset), for FindByTemplate. Empty if none.
+  std::vector<double> template_wave;
+  long template_start = 0;        // sample of `whitened` where the template starts
+  double template_onset_s = 0.0;  // onset time of the template's impact
+  double rate_hz = 0.0;
+  double sigma_floor_s = 0.0;  // timing floor used for these onsets
 };
+
+// Guided search (the tracker knows where the next impact should be): the best normalised
+// cross-correlation of the template with the whitened signal for onsets within
+// [t_center_s - half_window_s, t_center_s + half_window_s]. Returns true and fills *out (time
+// from the NCC peak, parabolic interpolation; sigma from the NCC; score = NCC; amplitude from
+// `samples`) when the NCC reaches min_ncc.
+bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples, double t_center_s,
+                    double half_window_s, double min_ncc, Impact* out);
 
 // Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
 // e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin

@@ -60,7 +60,9 @@ void AddSceneFlags(CLI::App* sub, SceneFlags* flags, bool with_law) {
   sub->add_option("--g", flags->g_m_s2, "gravitational acceleration, m/s^2");
   if (with_law) {
     sub->add_option("--law", flags->law, "contact law (see `bouncecal laws`)");
-    sub->add_option("--set", flags->law_sets, "law parameter NAME=VALUE (repeatable)");
+    sub->add_option("--set", flags->law_sets,
+                    "law parameter NAME=VALUE (repeatable: --set a=1 --set b=2)")
+        ->allow_extra_args(false);
     sub->add_option("--expression", flags->expression,
                     "force expression for the \"expression\" law");
   }

@@ -55,8 +55,9 @@ void AddSceneFlags(CLI::App* sub, SceneFlags* flags, bool with_law) {
                   "ball material preset (steel, copper, glass, rubber, wood, pingpong, ...)");
   sub->add_option("--drag", flags->drag, "air drag: none, linear or quadratic");
   sub->add_flag("--buoyancy", flags->buoyancy, "correct gravity for air buoyancy");
-  sub->add_flag("--contact-duration", flags->contact_duration,
-                "subtract the (Hertz) contact duration from the intervals");
+  sub->add_flag(
+      "--contact-duration", flags->contact_duration,
+      "contact duration effect: intervals between onsets include each impact's contact time");
   sub->add_option("--g", flags->g_m_s2, "gravitational acceleration, m/s^2");
   if (with_law) {
     sub->add_option("--law", flags->law, "contact law (see `bouncecal laws`)");

@@ -41,7 +41,7 @@ struct DetectOptions {
   int min_sequence_impacts = 3;   // fewer than this: not a bounce sequence
   double min_interval_s = 0.003;  // impacts closer than this are not resolvable
   bool guided_search = true;      // look again where the tracker expects the next impact
-  int lpc_order = 32;             // whitening predictor order (onsets.hpp)
+  int lpc_order = 48;             // whitening predictor order (onsets.hpp)
   bool IsValid(std::string* error) const;
 };
 

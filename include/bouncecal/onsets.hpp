@@ -33,7 +33,7 @@ namespace bouncecal {
 
 struct OnsetOptions {
   double hop_s = 0.0;                 // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
-  int lpc_order = 32;                 // whitening predictor order (0 = no whitening)
+  int lpc_order = 48;                 // whitening predictor order (0 = no whitening)
   double threshold_mads = 4.0;        // threshold = running median + threshold_mads * MAD
   double min_novelty_db = 2.5;        // and at least this flux (dB) above the running median
   double median_window_s = 0.3;       // running-median window of the adaptive threshold

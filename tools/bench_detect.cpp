@@ -457,11 +457,11 @@ int main(int argc, char** argv) {
     int lpc;
     bool guided;
   };
-  const std::vector<Setting> settings = {{0.17, true, 32, true},  {0.33, true, 32, true},
-                                         {0.67, true, 32, true},  {1.33, true, 32, true},
-                                         {0.33, false, 32, true}, {0.67, false, 32, true},
-                                         {0.33, true, 32, false}, {0.33, true, 16, true},
-                                         {0.33, true, 48, true},  {0.33, true, 0, true}};
+  const std::vector<Setting> settings = {{0.17, true, 48, true},  {0.33, true, 48, true},
+                                         {0.67, true, 48, true},  {1.33, true, 48, true},
+                                         {0.33, false, 48, true}, {0.67, false, 48, true},
+                                         {0.33, true, 48, false}, {0.33, true, 16, true},
+                                         {0.33, true, 32, true},  {0.33, true, 0, true}};
   for (const Setting& s : settings) {
     Metrics tot;
     DetectOptions o;

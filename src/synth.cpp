@@ -8,11 +8,14 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <utility>
 
 #include "bouncecal/error.hpp"
 #include "bouncecal/flight.hpp"
+#include "bouncecal/law_registry.hpp"
+#include "bouncecal/simulator.hpp"
 
 namespace bouncecal {
 namespace {
@@ -400,6 +403,51 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
     if (t + interval - t_first > scene.limits.horizon_s) break;
     t += interval;
     v_in = flight.ArrivalSpeed(imp.v_out_m_s);
+  }
+  return out;
+}
+
+std::vector<TruthImpact> ImpactsFromLaw(const Scene& scene, const TruthOptions& options) {
+  std::string err;
+  if (!scene.IsValid(&err)) throw Error(ErrorCode::kBadScene, err);
+  if (!options.IsValid(&err)) throw Error(ErrorCode::kBadParameter, "truth options: " + err);
+  if (options.contact_s) {
+    throw Error(ErrorCode::kBadParameter,
+                "truth options: contact_s = " + Num(*options.contact_s) +
+                    " cannot be used with truth from the contact law (the law '" + scene.law.name +
+                    "' gives each impact's contact duration)");
+  }
+  const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
+  const std::vector<double> params = law->ParameterValues();
+  const Simulation sim = Simulate(scene, *law, params);
+  if (sim.impacts.empty()) {
+    throw Error(ErrorCode::kBadScene, "law " + scene.law.name + ": the simulation has no impact (" +
+                                          StopReasonName(sim.stop_reason) + ")");
+  }
+  const double rest =
+      options.rest_speed_m_s > 0 ? options.rest_speed_m_s : scene.limits.rest_speed_m_s;
+  std::vector<TruthImpact> out;
+  for (std::size_t k = 0; k < sim.impacts.size(); ++k) {
+    const SimImpact& s = sim.impacts[k];
+    TruthImpact imp;
+    imp.time_s = s.time_s;
+    imp.v_in_m_s = s.v_in_m_s;
+    imp.v_out_m_s = s.v_out_m_s;
+    imp.contact_s = s.contact_s;
+    out.push_back(imp);
+    // The same cuts as ImpactsFromRestitution: rebound below the rest speed, next interval
+    // (onset to onset) shorter than min_interval_s.
+    if (imp.v_out_m_s < rest) return out;
+    if (k + 1 < sim.impacts.size() &&
+        sim.impacts[k + 1].time_s - s.time_s < options.min_interval_s) {
+      return out;
+    }
+  }
+  // The simulation ended before any cut: fine unless it gave up.
+  if (sim.stop_reason == StopReason::kStepLimit) {
+    throw Error(
+        ErrorCode::kBadParameter,
+        "law " + scene.law.name + ": the simulation stopped early (" + sim.stop_detail + ")");
   }
   return out;
 }
@@ -863,30 +911,63 @@ SynthSpec SynthPreset(const std::string& name) {
               "synth preset '" + name + "': unknown (known: " + known + ")");
 }
 
+const char* TruthSourceName(TruthSource s) {
+  return s == TruthSource::kLaw ? "law" : "restitution";
+}
+
+std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& d) {
+  Scene scene = spec.scene;
+  scene.drop.first_impact_time_s = d.first_impact_s;
+  if (d.height_m) {
+    scene.drop.height_m = *d.height_m;
+    scene.drop.impact_speed_m_s.reset();
+  }
+  if (spec.truth_source == TruthSource::kLaw) return ImpactsFromLaw(scene, spec.truth);
+  return ImpactsFromRestitution(scene, spec.restitution, spec.truth);
+}
+
 SynthResult Synthesize(const SynthSpec& spec) {
   std::string err;
   if (!spec.IsValid(&err)) throw Error(ErrorCode::kBadParameter, "synth: " + err);
   SynthResult r;
-  for (const SynthDrop& d : spec.drops) {
-    Scene scene = spec.scene;
-    scene.drop.first_impact_time_s = d.first_impact_s;
-    if (d.height_m) {
-      scene.drop.height_m = *d.height_m;
-      scene.drop.impact_speed_m_s.reset();
-    }
-    r.truth.push_back(ImpactsFromRestitution(scene, spec.restitution, spec.truth));
-  }
+  for (const SynthDrop& d : spec.drops) r.truth.push_back(DropTruth(spec, d));
   r.recording = RenderRecording(r.truth, spec.render);
   return r;
 }
 
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
   nlohmann::json j = TruthJson(spec.scene, spec.render, result.recording, spec.name);
-  j["restitution"] = spec.restitution.ToJson();
+  j["truth_source"] = TruthSourceName(spec.truth_source);
   nlohmann::json truth_opts = {{"min_interval_s", spec.truth.min_interval_s}};
-  truth_opts["contact_s"] =
-      spec.truth.contact_s ? nlohmann::json(*spec.truth.contact_s) : nlohmann::json("hertz");
+  if (spec.truth_source == TruthSource::kLaw) {
+    const std::unique_ptr<ContactLaw> law = CreateLaw(spec.scene.law, spec.scene);
+    const std::vector<double> values = law->ParameterValues();
+    nlohmann::json params = nlohmann::json::object(), units = nlohmann::json::object();
+    for (std::size_t i = 0; i < law->Parameters().size(); ++i) {
+      params[law->Parameters()[i].name] = values.at(i);
+      units[law->Parameters()[i].name] = law->Parameters()[i].unit;
+    }
+    j["law"] = {{"name", law->Name()},
+                {"formula", law->Formula()},
+                {"parameters", params},
+                {"units", units},
+                {"expression", spec.scene.law.expression},
+                {"simulator", "bouncecal::Simulate, default SimulatorOptions"}};
+    truth_opts["contact_s"] = "law";
+  } else {
+    j["restitution"] = spec.restitution.ToJson();
+    truth_opts["contact_s"] =
+        spec.truth.contact_s ? nlohmann::json(*spec.truth.contact_s) : nlohmann::json("hertz");
+  }
   j["truth_options"] = truth_opts;
+  double e_min = std::numeric_limits<double>::infinity(), e_max = -e_min;
+  for (const auto& d : result.truth) {
+    for (const TruthImpact& t : d) {
+      e_min = std::min(e_min, t.e());
+      e_max = std::max(e_max, t.e());
+    }
+  }
+  if (e_min <= e_max) j["e_range"] = {e_min, e_max};
   return j;
 }
 

@@ -17,6 +17,8 @@
 
 #include "bouncecal/audio.hpp"
 #include "bouncecal/error.hpp"
+#include "bouncecal/law_registry.hpp"
+#include "bouncecal/simulator.hpp"
 
 namespace bouncecal {
 namespace {
@@ -172,6 +174,118 @@ TEST(Truth, StopsAtRestSpeedAndRejectsBadInput) {
   EXPECT_EQ(
       code([&] { ImpactsFromRestitution(SteelScene(), RestitutionModel::Constant(0.9), bad); }),
       ErrorCode::kBadParameter);
+}
+
+// ---- truth from a contact law -----------------------------------------------------------------
+
+RenderOptions Quiet(double rate_hz);  // below
+
+Scene ViscoScene(double a_s) {
+  Scene s = SteelScene(0.2);
+  s.law.name = "hertz-viscoelastic";
+  s.law.parameters["A"] = a_s;
+  return s;
+}
+
+ErrorCode CodeOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.code();
+  }
+  return ErrorCode::kOk;
+}
+
+// The list is the simulator's, cut where the restitution truth would cut it; in vacuum every
+// interval is the contact plus the closed-form flight 2 v_out / g.
+TEST(TruthFromLaw, IsTheSimulatorsImpactListCutAtTheMinimumInterval) {
+  Scene s = ViscoScene(5e-7);
+  s.drop.first_impact_time_s = 0.25;
+  const auto imp = ImpactsFromLaw(s);
+  const auto law = CreateLaw(s.law, s);
+  const Simulation sim = Simulate(s, *law, law->ParameterValues());
+  ASSERT_GT(imp.size(), 50u);
+  ASSERT_GT(sim.impacts.size(), imp.size());  // cut before the ball comes to rest
+  EXPECT_DOUBLE_EQ(imp[0].time_s, 0.25);
+  EXPECT_NEAR(imp[0].v_in_m_s, std::sqrt(2 * kG * 0.2), 1e-12);
+  for (std::size_t k = 0; k < imp.size(); ++k) {
+    EXPECT_EQ(imp[k].time_s, sim.impacts[k].time_s);
+    EXPECT_EQ(imp[k].v_in_m_s, sim.impacts[k].v_in_m_s);
+    EXPECT_EQ(imp[k].v_out_m_s, sim.impacts[k].v_out_m_s);
+    EXPECT_EQ(imp[k].contact_s, sim.impacts[k].contact_s);
+    EXPECT_GT(imp[k].contact_s, 2e-5);
+    if (k + 1 < imp.size()) {
+      const double interval = imp[k + 1].time_s - imp[k].time_s;
+      EXPECT_GE(interval, 0.002);
+      EXPECT_NEAR(interval, imp[k].contact_s + 2 * imp[k].v_out_m_s / kG, 1e-9 * interval);
+      EXPECT_GT(imp[k + 1].e(), imp[k].e());  // viscoelastic: e rises as the ball slows
+    }
+  }
+  const std::size_t last = imp.size() - 1;
+  EXPECT_LT(sim.impacts[last + 1].time_s - sim.impacts[last].time_s, 0.002);
+
+  // A longer minimum interval gives a prefix of the same list.
+  TruthOptions o;
+  o.min_interval_s = 0.05;
+  const auto short_list = ImpactsFromLaw(s, o);
+  ASSERT_LT(short_list.size(), imp.size());
+  for (std::size_t k = 0; k < short_list.size(); ++k) {
+    EXPECT_EQ(short_list[k].time_s, imp[k].time_s);
+  }
+  EXPECT_LT(imp[short_list.size()].time_s - short_list.back().time_s, 0.05);
+  // The law's closed-form e(v) (which neglects gravity during the ~35 us contact) at the first
+  // impact.
+  const auto e0 = law->Restitution(law->ParameterValues(), BodyFromScene(s), imp[0].v_in_m_s);
+  ASSERT_TRUE(e0.has_value());
+  EXPECT_NEAR(imp[0].e(), *e0, 2e-4);
+}
+
+TEST(TruthFromLaw, StuckLawGivesOneImpactAndBadInputIsRejected) {
+  Scene stuck = SteelScene(0.2);
+  stuck.law.name = "linear-dashpot";
+  stuck.law.parameters = {{"k", 1e6}, {"c", 1e5}};  // far past critical damping
+  const auto one = ImpactsFromLaw(stuck);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_LT(one[0].v_out_m_s, 1e-3);
+
+  TruthOptions fixed;
+  fixed.contact_s = 1e-4;
+  EXPECT_EQ(CodeOf([&] { ImpactsFromLaw(ViscoScene(5e-7), fixed); }), ErrorCode::kBadParameter);
+  Scene unknown = SteelScene();
+  unknown.law.name = "no-such-law";
+  EXPECT_EQ(CodeOf([&] { ImpactsFromLaw(unknown); }), ErrorCode::kBadParameter);
+  EXPECT_EQ(CodeOf([&] { ImpactsFromLaw(ViscoScene(-1.0)); }), ErrorCode::kBadParameter);
+  Scene bad = ViscoScene(5e-7);
+  bad.drop.height_m = -1.0;
+  EXPECT_EQ(CodeOf([&] { ImpactsFromLaw(bad); }), ErrorCode::kBadScene);
+}
+
+TEST(TruthFromLaw, SynthesizeAndTruthJsonSayWhereTheImpactsCameFrom) {
+  SynthSpec spec = SynthPreset("steel-copper");
+  spec.scene = ViscoScene(5e-7);
+  spec.truth_source = TruthSource::kLaw;
+  spec.render = Quiet(48000);
+  const SynthResult r = Synthesize(spec);
+  Scene at = spec.scene;
+  at.drop.first_impact_time_s = spec.drops[0].first_impact_s;
+  const auto direct = ImpactsFromLaw(at, spec.truth);
+  ASSERT_EQ(r.truth.size(), 1u);
+  ASSERT_EQ(r.truth[0].size(), direct.size());
+  for (std::size_t k = 0; k < direct.size(); ++k) EXPECT_EQ(r.truth[0][k].time_s, direct[k].time_s);
+  const nlohmann::json j = TruthJson(spec, r);
+  EXPECT_EQ(j.at("truth_source"), "law");
+  EXPECT_FALSE(j.contains("restitution"));
+  EXPECT_EQ(j.at("law").at("name"), "hertz-viscoelastic");
+  EXPECT_EQ(j.at("law").at("parameters").at("A").get<double>(), 5e-7);
+  EXPECT_GT(j.at("law").at("parameters").at("k").get<double>(), 1e9);  // the materials' default
+  EXPECT_EQ(j.at("e_range")[0].get<double>(), direct.front().e());
+  EXPECT_EQ(j.at("e_range")[1].get<double>(), direct.back().e());
+  // The restitution source is unchanged and says so.
+  spec.truth_source = TruthSource::kRestitution;
+  const nlohmann::json jr = TruthJson(spec, Synthesize(spec));
+  EXPECT_EQ(jr.at("truth_source"), "restitution");
+  EXPECT_TRUE(jr.contains("restitution"));
+  EXPECT_FALSE(jr.contains("law"));
 }
 
 // ---- rendering -------------------------------------------------------------------------------
@@ -607,9 +721,10 @@ TEST(TruthJson, LoadTruthReadsBackWhatWasWritten) {
   fs::remove_all(dir);
 }
 
-// The bundled default recording is what data/README.md says: the steel-copper preset rendered
-// from data/default_steel_copper.toml with seed 1 (regenerate with
-// tools/make_default_recording.sh after changing the renderer).
+// The bundled default recording is what data/README.md says: impacts simulated with the contact
+// law of data/default_steel_copper.toml (hertz-viscoelastic, A = 5.16e-7 s, e = 0.92 at the
+// first impact), rendered with the steel-copper preset's sound and seed 1 (regenerate with
+// tools/make_default_recording.sh after changing the renderer or the simulator).
 TEST(DefaultRecording, IsTheDocumentedRenderingOfItsScene) {
   const std::string root = BOUNCECAL_SOURCE_DIR;
   const std::string flac = root + "/data/default_steel_copper.flac";
@@ -623,8 +738,17 @@ TEST(DefaultRecording, IsTheDocumentedRenderingOfItsScene) {
 
   SynthSpec spec = SynthPreset("steel-copper");
   spec.scene = LoadSceneFile(root + "/data/default_steel_copper.toml");
+  EXPECT_EQ(spec.scene.law.name, "hertz-viscoelastic");
+  EXPECT_EQ(spec.scene.law.parameters.at("A"), 5.16e-7);
+  spec.truth_source = TruthSource::kLaw;
   spec.render.seed = 1;
   const SynthResult r = Synthesize(spec);
+  // The documented numbers (data/README.md).
+  ASSERT_EQ(r.truth.size(), 1u);
+  EXPECT_EQ(r.truth[0].size(), 113u);
+  EXPECT_DOUBLE_EQ(r.truth[0].front().time_s, 1.5);
+  EXPECT_NEAR(r.truth[0].front().e(), 0.920, 5e-4);
+  EXPECT_NEAR(r.truth[0].back().e(), 0.970, 5e-4);
   ASSERT_EQ(r.recording.channels[0].size(), a.channels[0].size());
   double worst = 0;
   for (std::size_t n = 0; n < a.channels[0].size(); ++n) {
@@ -633,6 +757,8 @@ TEST(DefaultRecording, IsTheDocumentedRenderingOfItsScene) {
   EXPECT_LE(worst, 1.5 / 32768.0);  // 16-bit quantisation only
 
   const TruthFile t = LoadTruth(root + "/data/default_steel_copper.truth.json");
+  EXPECT_EQ(t.document.at("truth_source"), "law");
+  EXPECT_EQ(t.document.at("law").at("name"), "hertz-viscoelastic");
   ASSERT_EQ(t.drops.size(), 1u);
   ASSERT_EQ(t.drops[0].size(), r.truth[0].size());
   for (std::size_t k = 0; k < t.drops[0].size(); ++k) {
@@ -703,6 +829,45 @@ TEST_F(SynthCli, SceneFlagsOverrideThePresetScene) {
   EXPECT_NEAR(imps[0]["v_in_m_s"].get<double>(), std::sqrt(2 * kG * 0.1), 1e-12);
   EXPECT_NEAR(imps[1]["e"].get<double>(), 0.8, 1e-12);
   EXPECT_EQ(truth["scene"]["ball"]["material"], "steel");  // the rest of the preset kept
+}
+
+// --truth-from auto takes the law when the scene file or the flags name one.
+TEST_F(SynthCli, TruthFromTheSceneLawWhenOneIsNamed) {
+  const fs::path scene = dir_ / "visco.toml";
+  std::ofstream(scene) << "[ball]\ndiameter_m = 0.01\nmaterial = \"steel\"\n[drop]\n"
+                          "height_m = 0.1\n[law]\nname = \"hertz-viscoelastic\"\n"
+                          "[law.parameters]\nA = 4e-7\n";
+  auto source = [&](const std::string& args) {
+    const std::string out = (dir_ / "t.wav").string();
+    const int rc = Run(args + " --no-noise --tail 0.1 --force -o " + out);
+    EXPECT_EQ(rc, 0) << args << ": " << Slurp(dir_ / "stderr");
+    if (rc != 0) return nlohmann::json();
+    return nlohmann::json::parse(Slurp(dir_ / "t.truth.json"));
+  };
+  const auto by_file = source("--scene " + scene.string());
+  ASSERT_FALSE(by_file.is_null());
+  EXPECT_EQ(by_file["truth_source"], "law");
+  EXPECT_EQ(by_file["law"]["parameters"]["A"].get<double>(), 4e-7);
+  Scene s = LoadSceneFile(scene.string());
+  s.drop.first_impact_time_s = by_file["drops"][0]["impacts"][0]["time_s"].get<double>();
+  const auto imp = ImpactsFromLaw(s);
+  ASSERT_EQ(by_file["drops"][0]["impacts"].size(), imp.size());
+  EXPECT_EQ(by_file["drops"][0]["impacts"][5]["time_s"].get<double>(), imp[5].time_s);
+
+  const auto by_flags = source("--law hertz-viscoelastic --set A=3e-7");
+  EXPECT_EQ(by_flags["truth_source"], "law");
+  EXPECT_EQ(by_flags["law"]["parameters"]["A"].get<double>(), 3e-7);
+  const auto forced = source("--scene " + scene.string() + " --truth-from restitution");
+  EXPECT_EQ(forced["truth_source"], "restitution");
+  EXPECT_FALSE(forced.contains("law"));
+  EXPECT_EQ(source("")["truth_source"], "restitution");  // the preset alone: its e(v)
+
+  const std::string out = (dir_ / "x.wav").string();
+  EXPECT_EQ(Run("--truth-from banana -o " + out), 9);
+  EXPECT_EQ(Run("--truth-from law --restitution 0.8 -o " + out), 9);
+  EXPECT_EQ(Run("--law hertz-viscoelastic --contact-s 1e-4 -o " + out), 9);
+  EXPECT_EQ(Run("--law no-such-law -o " + out), 9);
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST_F(SynthCli, BadArgumentsFailCleanly) {

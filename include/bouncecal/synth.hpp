@@ -94,6 +94,20 @@ double HertzContactDuration(const Scene& scene, double v_m_s);
 std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const RestitutionModel& model,
                                                 const TruthOptions& options = {});
 
+// Exact impact list of one drop under the scene's contact law (scene.law, created with
+// CreateLaw from law_registry.hpp; parameters not given take the law's defaults), computed by
+// the contact-law simulator (Simulate in simulator.hpp, default SimulatorOptions): the same
+// physics `bouncecal simulate` and `bouncecal calibrate` use, so calibrating the same law on a
+// recording rendered from this list recovers its parameters. The simulator always simulates
+// the contact, so each onset-to-onset interval is the contact time plus the flight (whatever
+// scene.effects.contact_duration says), and each impact's contact_s is the law's contact time.
+// The list is cut as ImpactsFromRestitution cuts it: it ends with the first impact whose next
+// interval would be shorter than options.min_interval_s or whose rebound speed is below the
+// rest speed (or where the simulator stopped: at rest, stuck, horizon, max_impacts).
+// options.contact_s must be unset (the law sets the contact durations).
+// Throws Error(kBadScene / kBadParameter) for an invalid scene, law, parameter or options.
+std::vector<TruthImpact> ImpactsFromLaw(const Scene& scene, const TruthOptions& options = {});
+
 // A damped mode: unit impulse response gain * exp(-t/decay_s) * sin(2 pi freq_hz t).
 struct Mode {
   double freq_hz = 1000.0;
@@ -196,10 +210,16 @@ struct SynthDrop {
   double first_impact_s = 1.0;     // file time of the drop's first impact
   std::optional<double> height_m;  // overrides scene.drop.height_m for this drop
 };
+// Where the truth impacts come from: the restitution model e(v) (ImpactsFromRestitution), or
+// the scene's contact law through the simulator (ImpactsFromLaw; restitution is then unused).
+enum class TruthSource { kRestitution, kLaw };
+const char* TruthSourceName(TruthSource s);  // "restitution", "law"
+
 struct SynthSpec {
   std::string name;  // preset name or "custom"
   Scene scene;
   RestitutionModel restitution;
+  TruthSource truth_source = TruthSource::kRestitution;
   TruthOptions truth;
   RenderOptions render;
   std::vector<SynthDrop> drops{SynthDrop{}};
@@ -215,12 +235,17 @@ struct SynthResult {
   std::vector<std::vector<TruthImpact>> truth;  // per drop
   Recording recording;
 };
-// Truth for every drop, then RenderRecording.
+// Truth for every drop (from spec.truth_source), then RenderRecording.
 SynthResult Synthesize(const SynthSpec& spec);
+// The truth of one drop of spec at file time first_impact_s (height: the drop's override).
+std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& drop);
 
 // The ground-truth document written beside the audio (stable keys):
 // {"generator": "bouncecal synth <version>", "sample_rate_hz", "channels", "duration_s",
-//  "time_convention", "preset", "seed", "scene": {...}, "scene_toml", "restitution": {...},
+//  "time_convention", "preset", "seed", "scene": {...}, "scene_toml", "truth_source",
+//  "restitution": {...} (truth_source "restitution") or "law": {"name", "parameters": {NAME:
+//  value, every parameter the law was created with}, "units": {NAME: unit}, "expression"}
+//  (truth_source "law"), "truth_options", "e_range": [min, max] over all impacts,
 //  "render": {...}, "drops": [{"impacts": [{"index", "time_s", "onset_s", "v_in_m_s",
 //  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped", "amplitude_per_channel",
 //  "snr_db_per_channel"}...]}], "distractors": [...]}

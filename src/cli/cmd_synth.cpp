@@ -5,6 +5,12 @@
 //
 // A preset gives the scene, e(v) and the render settings; --scene/scene flags replace or
 // override its scene, the other flags override its render settings.
+//
+// Truth source (--truth-from): "restitution" renders the impacts of the preset's e(v) (or
+// --restitution/--e0...); "law" simulates them with the scene's contact law (ImpactsFromLaw:
+// the simulator `bouncecal simulate` and `bouncecal calibrate` use). "auto" (default) takes the
+// law when one is named explicitly: a [law] table (or law key) in the --scene file, or
+// --law/--set/--expression; otherwise the restitution model.
 #include <unistd.h>
 
 #include <cstdio>
@@ -12,6 +18,8 @@
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <regex>
+#include <sstream>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -51,15 +59,43 @@ struct SynthFlags {
   double drop_gap_s = 1.5;
   std::optional<double> tail_s, duration_s;
   std::string subtype;
+  std::string truth_from = "auto";  // auto | restitution | law
   std::string output;
   bool force = false;
   bool json = false;
   bool list_presets = false;
 };
 
+bool AnyLawFlag(const SceneFlags& f) {
+  return !f.law.empty() || !f.law_sets.empty() || !f.expression.empty();
+}
+
 bool AnySceneFlag(const SceneFlags& f) {
   return f.height_m || f.impact_speed_m_s || f.diameter_m || f.density_kg_m3 || f.mass_kg ||
-         !f.material.empty() || !f.drag.empty() || f.buoyancy || f.contact_duration || f.g_m_s2;
+         !f.material.empty() || !f.drag.empty() || f.buoyancy || f.contact_duration || f.g_m_s2 ||
+         AnyLawFlag(f);
+}
+
+// True when the scene file names a contact law: a [law] / [law.parameters] table, a dotted
+// law.* key or an inline law = {...} table at the top level.
+bool SceneFileNamesLaw(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  static const std::regex kLawKey(R"((^|\n)[ \t]*(\[[ \t]*law[ \t]*[\].]|law[ \t]*[.=]))");
+  return std::regex_search(text.str(), kLawKey);
+}
+
+TruthSource ChooseTruthSource(const SynthFlags& f) {
+  if (f.truth_from == "law") return TruthSource::kLaw;
+  if (f.truth_from == "restitution") return TruthSource::kRestitution;
+  if (f.truth_from != "auto") {
+    throw Error(ErrorCode::kBadParameter,
+                "--truth-from " + f.truth_from + ": expected auto, restitution or law");
+  }
+  const bool law =
+      AnyLawFlag(f.scene) || (!f.scene.scene_file.empty() && SceneFileNamesLaw(f.scene.scene_file));
+  return law ? TruthSource::kLaw : TruthSource::kRestitution;
 }
 
 void Replace(std::string* s, const std::string& from, const std::string& to) {
@@ -119,6 +155,22 @@ void Run(const SynthFlags& f) {
   SynthSpec spec = SynthPreset(f.preset);
   spec.scene = PresetSceneWithFlags(spec, f.scene);
   if (!f.scene.scene_file.empty() || AnySceneFlag(f.scene)) spec.name += "+scene";
+  spec.truth_source = ChooseTruthSource(f);
+  if (spec.truth_source == TruthSource::kLaw) {
+    if (f.restitution || f.e0 || f.e_slope || f.e_power) {
+      throw Error(ErrorCode::kBadParameter,
+                  "--restitution/--e0/--e-slope/--e-power: not used when the truth comes from the "
+                  "contact law " +
+                      spec.scene.law.name + " (give --truth-from restitution)");
+    }
+    if (f.contact_s) {
+      throw Error(ErrorCode::kBadParameter,
+                  "--contact-s: the contact law " + spec.scene.law.name +
+                      " gives each impact's contact duration (give --truth-from restitution)");
+    }
+    spec.truth.contact_s.reset();  // the preset's fixed duration is a restitution-model setting
+    spec.name += "+law:" + spec.scene.law.name;
+  }
 
   RenderOptions& r = spec.render;
   if (f.rate_hz) r.sample_rate_hz = *f.rate_hz;
@@ -180,12 +232,7 @@ void Run(const SynthFlags& f) {
     // Each drop starts drop_gap_s after the previous one's last impact.
     SynthSpec one = spec;
     one.drops.resize(1);
-    Scene s0 = spec.scene;
-    s0.drop.first_impact_time_s = 0.0;
-    if (one.drops[0].height_m) s0.drop.height_m = *one.drops[0].height_m;
-    std::string err;
-    if (!s0.IsValid(&err)) throw Error(ErrorCode::kBadScene, err);
-    const auto truth = ImpactsFromRestitution(s0, spec.restitution, spec.truth);
+    const auto truth = DropTruth(spec, SynthDrop{0.0, one.drops[0].height_m});
     const double length_s = truth.back().time_s - truth.front().time_s;
     spec.drops.clear();
     for (int i = 0; i < *f.drops; ++i) {
@@ -229,7 +276,9 @@ void Run(const SynthFlags& f) {
                         {"channels", result.recording.channels.size()},
                         {"duration_s", result.recording.duration_s()},
                         {"drops", result.truth.size()},
-                        {"impacts", impacts}};
+                        {"impacts", impacts},
+                        {"truth_source", TruthSourceName(spec.truth_source)}};
+    if (spec.truth_source == TruthSource::kLaw) j["law"] = truth.at("law");
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf(
@@ -238,6 +287,18 @@ void Run(const SynthFlags& f) {
         result.recording.channels.size(), result.recording.channels.size() == 1 ? "" : "s",
         result.recording.duration_s(), impacts, impacts == 1 ? "" : "s", result.truth.size(),
         result.truth.size() == 1 ? "" : "s", static_cast<unsigned long long>(spec.render.seed));
+    if (spec.truth_source == TruthSource::kLaw) {
+      std::string params;
+      for (const auto& [name, value] : truth.at("law").at("parameters").items()) {
+        params += " " + name + "=" + value.dump();
+      }
+      std::printf("impacts simulated with the contact law %s:%s\n", spec.scene.law.name.c_str(),
+                  params.c_str());
+    }
+    if (truth.contains("e_range")) {
+      std::printf("restitution e from %.5f to %.5f\n", truth["e_range"][0].get<double>(),
+                  truth["e_range"][1].get<double>());
+    }
     std::printf("wrote %s (ground truth)\n", truth_path.c_str());
   }
 }
@@ -255,7 +316,12 @@ void RegisterSynth(CLI::App& app) {
                   "steel-copper (default), glass-glass, pingpong-wood, rubber-wood, phone-16k, "
                   "two-drops");
   sub->add_flag("--list-presets", flags->list_presets, "list the presets and exit");
-  AddSceneFlags(sub, &flags->scene, /*with_law=*/false);
+  AddSceneFlags(sub, &flags->scene, /*with_law=*/true);
+  sub->add_option("--truth-from", flags->truth_from,
+                  "where the impacts come from: restitution (the preset's e(v) or --restitution/"
+                  "--e0...), law (the scene's contact law through the simulator, as `bouncecal "
+                  "simulate`), auto (default: law when --scene has a [law] table or "
+                  "--law/--set/--expression is given)");
   sub->add_option("--rate", flags->rate_hz, "sample rate, Hz (8000..384000)");
   sub->add_option("--seed", flags->seed, "random seed (same seed -> identical file)");
   sub->add_option("--snr-db", flags->snr_db, "peak-to-noise-RMS ratio of channel 0, dB");

@@ -17,6 +17,8 @@ namespace {
 namespace odeint = boost::numeric::odeint;
 
 constexpr int kMaxLawState = 7;
+// Room for a law's parameters plus its prepared constants (ContactLaw::PrepareParameters).
+constexpr size_t kMaxPrepared = 32;
 // Event times are located to this relative precision (in units of the contact time).
 constexpr double kEventTolerance = 1e-14;
 
@@ -44,10 +46,14 @@ class ScaledContact {
   // The large layout has room for the plate (z, z' at 3, 4); the small one has none.
   static constexpr bool kBig = N > 4;
 
-  ScaledContact(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
-                double g_m_s2, const PlateModel* plate, const Scales& scales, int n_state)
+  // p: the law's parameters; pe: p followed by the law's prepared constants
+  // (ContactLaw::PrepareParameters), passed to the per-evaluation dynamics functions.
+  ScaledContact(const ContactLaw& law, std::span<const double> p, std::span<const double> pe,
+                const ContactBody& body, double g_m_s2, const PlateModel* plate,
+                const Scales& scales, int n_state)
       : law_(law),
         p_(p),
+        pe_(pe),
         body_(body),
         g_(g_m_s2),
         plate_(plate),
@@ -79,13 +85,13 @@ class ScaledContact {
   // step stays on the branch the step started on), extended continuously past delta = 0 by
   // F(0, delta') so that the dense output around the end event stays smooth.
   double Force(const Phys& ph) const {
-    return law_.ForceOnBranch(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data(),
+    return law_.ForceOnBranch(pe_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data(),
                               positive_branch_);
   }
   void SetBranch(bool positive) { positive_branch_ = positive; }
   bool positive_branch() const { return positive_branch_; }
   double Switch(const Phys& ph) const {
-    return law_.SwitchFunction(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data());
+    return law_.SwitchFunction(pe_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data());
   }
   double PlateEnergy(const Phys& ph) const {
     if (!plate_) return 0.0;
@@ -121,7 +127,7 @@ class ScaledContact {
     }
     if (n_state_ > 0) {
       std::array<double, kMaxLawState> rate{};
-      law_.StateRate(p_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data(),
+      law_.StateRate(pe_, body_, std::max(ph.delta, 0.0), ph.delta_dot, ph.state.data(),
                      rate.data());
       for (int i = 0; i < n_state_; ++i) dx[s0_ + i] = t * rate[i] / sc_.state[i];
     }
@@ -130,6 +136,7 @@ class ScaledContact {
  private:
   const ContactLaw& law_;
   std::span<const double> p_;
+  std::span<const double> pe_;
   const ContactBody& body_;
   double g_;
   const PlateModel* plate_;
@@ -174,9 +181,9 @@ bool AllFinite(const std::array<double, N>& x) {
 }
 
 template <size_t N>
-ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
-                     double v_in, double g, const PlateModel* plate,
-                     const ContactRunOptions& options) {
+ContactRun Integrate(const ContactLaw& law, std::span<const double> p,
+                     std::span<const double> p_prepared, const ContactBody& body, double v_in,
+                     double g, const PlateModel* plate, const ContactRunOptions& options) {
   using State = std::array<double, N>;
   using Stepper = odeint::runge_kutta_dopri5<State>;
   ContactRun run;
@@ -200,7 +207,7 @@ ContactRun Integrate(const ContactLaw& law, std::span<const double> p, const Con
     sc.state[i] = (std::isfinite(s) && s > 0.0) ? s : 1.0;
   }
 
-  ScaledContact<N> sys(law, p, body, g, plate, sc, n_state);
+  ScaledContact<N> sys(law, p, p_prepared, body, g, plate, sc, n_state);
   State x{};
   x[1] = 1.0;
   for (int i = 0; i < n_state; ++i) x[sys.StateOffset() + i] = s0[i] / sc.state[i];
@@ -493,12 +500,22 @@ ContactRun RunContact(const ContactLaw& law, std::span<const double> p, const Co
                std::to_string(kMaxLawState) + " supported)";
     return r;
   }
+  // The law's constants derived from (p, body), computed once per contact instead of at every
+  // force evaluation (ContactLaw::PrepareParameters); without room for them, plain p.
+  std::array<double, kMaxPrepared> pe_buf{};
+  std::span<const double> pe = p;
+  const int n_prep = law.PreparedSize();
+  if (n_prep > 0 && p.size() + static_cast<size_t>(n_prep) <= pe_buf.size()) {
+    std::copy(p.begin(), p.end(), pe_buf.begin());
+    law.PrepareParameters(p, body, pe_buf.data() + p.size());
+    pe = std::span<const double>(pe_buf.data(), p.size() + static_cast<size_t>(n_prep));
+  }
   // Small fixed-size state when nothing but the ball and at most one law variable is
   // integrated: a disabled effect (the plate) costs nothing.
   if (plate == nullptr && n_state <= 1) {
-    return Integrate<4>(law, p, body, v_in_m_s, g_m_s2, nullptr, options);
+    return Integrate<4>(law, p, pe, body, v_in_m_s, g_m_s2, nullptr, options);
   }
-  return Integrate<5 + kMaxLawState>(law, p, body, v_in_m_s, g_m_s2, plate, options);
+  return Integrate<5 + kMaxLawState>(law, p, pe, body, v_in_m_s, g_m_s2, plate, options);
 }
 
 }  // namespace bouncecal

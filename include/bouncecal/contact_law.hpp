@@ -84,6 +84,15 @@ class ContactLaw {
                        std::string* error) const;
 
   // --- dynamics -----------------------------------------------------------------------------
+  // Constants derived from (p, body) that a law would otherwise recompute at every force
+  // evaluation (Hertz-Tsuji's eta = alpha(e) sqrt(m* k), alpha from a table). The integrator
+  // calls PrepareParameters once per contact and then passes the EXTENDED vector
+  // [p..., prepared...] (p.size() == Parameters().size() + PreparedSize()) to Force,
+  // ForceOnBranch, SwitchFunction and StateRate; every other caller passes plain p. Laws
+  // that prepare must therefore accept both sizes (use the prepared values when present).
+  virtual int PreparedSize() const { return 0; }
+  virtual void PrepareParameters(std::span<const double> /*p*/, const ContactBody& /*body*/,
+                                 double* /*prepared*/) const {}
   virtual ContactEnd EndRule() const { return ContactEnd::kOverlapZero; }
   // Number of internal state variables (Jiang-Liu relaxation energy, hysteresis memory...).
   virtual int StateSize() const { return 0; }

@@ -75,9 +75,15 @@ class HertzTsuji final : public LawBase {
   double Force(std::span<const double> p, const ContactBody& body, double delta_m,
                double delta_dot_m_s, const double*) const override {
     if (delta_m <= 0.0) return 0.0;
-    const double eta = Alpha(p[1]) * std::sqrt(body.mass_kg * p[0]);
-    return p[0] * delta_m * std::sqrt(delta_m) +
-           eta * std::sqrt(std::sqrt(delta_m)) * delta_dot_m_s;
+    // eta prepared once per contact by the integrator (p[2]), else from the alpha(e) table.
+    const double eta = p.size() > 2 ? p[2] : Eta(p, body);
+    const double sqrt_delta = std::sqrt(delta_m);
+    return p[0] * delta_m * sqrt_delta + eta * std::sqrt(sqrt_delta) * delta_dot_m_s;
+  }
+  int PreparedSize() const override { return 1; }
+  void PrepareParameters(std::span<const double> p, const ContactBody& body,
+                         double* prepared) const override {
+    prepared[0] = Eta(p, body);
   }
   double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
                        const double*) const override {
@@ -114,6 +120,10 @@ class HertzTsuji final : public LawBase {
   }
   // The dimensionless damping alpha of Tsuji's eta = alpha sqrt(m* k) for restitution e.
   static double Alpha(double e) { return e >= 1.0 ? 0.0 : Curves().alpha_of_e(e); }
+  // Tsuji's damping coefficient eta = alpha(e) sqrt(m* k) (eq. 12).
+  static double Eta(std::span<const double> p, const ContactBody& body) {
+    return Alpha(p[1]) * std::sqrt(body.mass_kg * p[0]);
+  }
 };
 
 }  // namespace

@@ -59,7 +59,10 @@ class ScaledContact {
         plate_(plate),
         sc_(scales),
         n_state_(n_state),
-        s0_(kBig ? 5 : 3) {}
+        s0_(kBig ? 5 : 3),
+        inv_mass_(1.0 / body.mass_kg),
+        accel_scale_(scales.time_s / scales.speed_m_s),
+        power_scale_(scales.time_s / scales.energy_j) {}
 
   size_t StateOffset() const { return s0_; }
   const Scales& scales() const { return sc_; }
@@ -111,12 +114,11 @@ class ScaledContact {
   void operator()(const State& x, State& dx, double /*tau*/) const {
     const Phys ph = Unscale(x);
     const double f = Force(ph);
-    const double m = body_.mass_kg;
     const double t = sc_.time_s;
     dx.fill(0.0);
-    dx[0] = x[1];                              // L = V T
-    dx[1] = t / sc_.speed_m_s * (g_ - f / m);  // m y'' = m g - F
-    dx[2] = t * f * ph.yd / sc_.energy_j;      // d(work)/dt = F y'
+    dx[0] = x[1];                                 // L = V T
+    dx[1] = accel_scale_ * (g_ - f * inv_mass_);  // m y'' = m g - F
+    dx[2] = power_scale_ * f * ph.yd;             // d(work)/dt = F y'
     if constexpr (kBig) {
       if (plate_) {
         dx[3] = x[4];
@@ -143,6 +145,10 @@ class ScaledContact {
   Scales sc_;
   int n_state_;
   size_t s0_;
+  // Constant factors of the right-hand side (multiplications instead of divisions per call).
+  double inv_mass_;     // 1/m*, 1/kg
+  double accel_scale_;  // T/V: physical acceleration -> scaled
+  double power_scale_;  // T/E: physical power -> scaled
   bool positive_branch_ = true;
 };
 

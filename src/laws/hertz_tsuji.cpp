@@ -80,6 +80,11 @@ class HertzTsuji final : public LawBase {
     const double sqrt_delta = std::sqrt(delta_m);
     return p[0] * delta_m * sqrt_delta + eta * std::sqrt(sqrt_delta) * delta_dot_m_s;
   }
+  // No branches: one call instead of the default's second virtual dispatch to Force.
+  double ForceOnBranch(std::span<const double> p, const ContactBody& body, double delta_m,
+                       double delta_dot_m_s, const double* state, bool) const override {
+    return HertzTsuji::Force(p, body, delta_m, delta_dot_m_s, state);
+  }
   int PreparedSize() const override { return 1; }
   void PrepareParameters(std::span<const double> p, const ContactBody& body,
                          double* prepared) const override {

@@ -647,7 +647,7 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
 }
 
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out) {
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty) {
   const std::vector<double>& h = r.template_wave;
   const std::vector<float>& w = r.whitened;
   if (h.empty() || !(r.rate_hz > 0.0) || w.size() != x.size()) return false;
@@ -672,10 +672,15 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
     return yy > 0.0 ? xy / std::sqrt(hh * yy) : 0.0;
   };
   long best_l = -1;
-  double best_c = -2.0;
+  double best_c = -2.0, best_rank = -1e300;
+  const long l_centre = start_of(t_center_s);
+  const double inv_half = half_window_s > 0.0 ? 1.0 / (half_window_s * r.rate_hz) : 0.0;
   for (long l = lo; l <= hi; ++l) {
     const double c = ncc(l);
-    if (c > best_c) {
+    const double u = static_cast<double>(l - l_centre) * inv_half;
+    const double rank = c - edge_penalty * u * u;
+    if (rank > best_rank) {
+      best_rank = rank;
       best_c = c;
       best_l = l;
     }

@@ -73,11 +73,13 @@ struct OnsetResult {
 
 // Guided search (the tracker knows where the next impact should be): the best normalised
 // cross-correlation of the template with the whitened signal for onsets within
-// [t_center_s - half_window_s, t_center_s + half_window_s]. Returns true and fills *out (time
-// from the NCC peak, parabolic interpolation; sigma from the NCC; score = NCC; amplitude from
-// `samples`) when the NCC reaches min_ncc.
+// [t_center_s - half_window_s, t_center_s + half_window_s]. Near the noise level (NCC ~0.35) a
+// noise peak can match as well as the impact, so positions are ranked by
+// NCC - edge_penalty * ((t - t_center_s) / half_window_s)^2 (the prediction is best at the
+// centre). Returns true and fills *out (time from the NCC peak, parabolic interpolation; sigma
+// from the NCC; score = NCC; amplitude from `samples`) when the chosen NCC reaches min_ncc.
 bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out);
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty = 0.0);
 
 // Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
 // e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin

@@ -157,7 +157,7 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
 
   OnsetOptions oo;
   oo.hop_s = options.hop_s;
-  oo.refine = options.refine;
+  oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
   oo.lpc_order = options.lpc_order;
   const OnsetDetector detector(oo, audio.info.sample_rate_hz);
   OnsetResult onsets = detector.Detect(sel.samples);
@@ -182,6 +182,11 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
                 path + ": no bounce sequence found (" + std::to_string(res.candidates.size()) +
                     " onset candidates; none form " + std::to_string(options.min_sequence_impacts) +
                     " or more impacts with shrinking intervals)");
+  if (!options.refine) {
+    for (Impact& im : res.candidates) CoarsenToHop(&im, detector.hop_samples(), onsets.rate_hz);
+    for (Sequence& q : res.sequences)
+      for (Impact& im : q.impacts) CoarsenToHop(&im, detector.hop_samples(), onsets.rate_hz);
+  }
   res.main_sequence = 0;
   for (std::size_t s = 1; s < res.sequences.size(); ++s)
     if (res.sequences[s].impacts.size() >

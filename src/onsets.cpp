@@ -328,7 +328,21 @@ OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
 
 OnsetDetector::~OnsetDetector() = default;
 
+void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz) {
+  const double hop = static_cast<double>(std::max(1, hop_samples));
+  const double frame = std::floor(impact->time_s * rate_hz / hop);
+  impact->time_s = (frame + 0.5) * hop / rate_hz;
+  impact->sigma_s = hop / std::sqrt(12.0) / rate_hz;  // uniform over one hop
+}
+
 OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
+  OnsetResult res = DetectRefined(x);
+  if (!options_.refine)
+    for (Impact& im : res.onsets) CoarsenToHop(&im, hop_, rate_hz_);
+  return res;
+}
+
+OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   OnsetResult res;
   res.hop_samples = hop_;
   res.window_samples = window_;
@@ -457,7 +471,7 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
   auto make_impact = [&](std::size_t centre, bool tight) {
     double onset = static_cast<double>(centre);
     double sigma = static_cast<double>(hop) / std::sqrt(12.0);
-    if (options_.refine) {
+    {
       const std::size_t pr = tight ? std::max<std::size_t>(16, pre / 3) : pre;
       const std::size_t po = tight ? std::max<std::size_t>(8, post / 2) : post;
       const std::size_t b = centre > pr ? centre - pr : 0;
@@ -599,10 +613,9 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
     const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - c * c)) / c;
     im.sigma_s = std::hypot(sig_samples / rate_hz_, floor_s);
   };
-  if (options_.refine)
-    for (std::size_t i = 0; i < res.onsets.size(); ++i)
-      check_with_template(res.onsets[i], window_lo[i] - static_cast<long>(lead),
-                          window_hi[i] - static_cast<long>(lead));
+  for (std::size_t i = 0; i < res.onsets.size(); ++i)
+    check_with_template(res.onsets[i], window_lo[i] - static_cast<long>(lead),
+                        window_hi[i] - static_cast<long>(lead));
 
   if (options_.template_threshold < 1.0) {
     std::vector<double> known;
@@ -636,7 +649,7 @@ OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
       Impact imp = make_impact(i + lead, true);
       imp.score = std::clamp(c, 0.0, 1.0);
       const long s0 = static_cast<long>(i);
-      if (options_.refine) check_with_template(imp, s0, s0);
+      check_with_template(imp, s0, s0);
       res.onsets.push_back(imp);
     }
     if (res.onsets.size() != before)

@@ -70,6 +70,31 @@ TEST(Detect, RenderedDropIsFoundWithExactTimes) {
   }
 }
 
+TEST(Detect, RefinementOffChangesTimingNotDetection) {
+  // Refinement off reports each impact at the centre of its STFT hop: the same impacts (one
+  // per refined impact, within half a hop of it), with sigma = hop / sqrt(12).
+  const SynthResult s = Synthesize(SynthPreset("pingpong-wood"));
+  const Audio a = InMemory(s.recording.channels, s.recording.sample_rate_hz, "pp.wav");
+  const DetectionResult fine = DetectImpacts(a, DetectOptions{});
+  DetectOptions o;
+  o.refine = false;
+  const DetectionResult coarse = DetectImpacts(a, o);
+  ASSERT_EQ(coarse.sequences.size(), fine.sequences.size());
+  const double hop_s = 16.0 / s.recording.sample_rate_hz;  // auto hop at 48 kHz: 16 samples
+  double worst = 0.0;
+  for (std::size_t q = 0; q < fine.sequences.size(); ++q) {
+    const auto& f = fine.sequences[q].impacts;
+    const auto& c = coarse.sequences[q].impacts;
+    ASSERT_EQ(c.size(), f.size()) << "sequence " << q;
+    for (std::size_t k = 0; k < f.size(); ++k) {
+      EXPECT_LE(std::fabs(c[k].time_s - f[k].time_s), 0.5 * hop_s + 1e-9) << "impact " << k;
+      EXPECT_NEAR(c[k].sigma_s, hop_s / std::sqrt(12.0), 1e-9);
+      worst = std::max(worst, std::fabs(c[k].time_s - f[k].time_s));
+    }
+  }
+  EXPECT_GT(worst, 0.25 * hop_s);  // the times did move to the hop grid
+}
+
 TEST(Detect, TwoDropsAreTwoSequences) {
   const SynthResult s = Synthesize(SynthPreset("two-drops"));
   const Audio a = InMemory(s.recording.channels, s.recording.sample_rate_hz, "two.wav");

@@ -37,7 +37,7 @@ struct Sequence {
 struct DetectOptions {
   ChannelSelection channel;
   double hop_s = 0.0;             // STFT hop; 0 = auto (~0.33 ms)
-  bool refine = true;             // sub-sample change-point refinement
+  bool refine = true;             // sub-sample timing (false: hop-resolution times, same impacts)
   int min_sequence_impacts = 3;   // fewer than this: not a bounce sequence
   double min_interval_s = 0.003;  // impacts closer than this are not resolvable
   bool guided_search = true;      // look again where the tracker expects the next impact

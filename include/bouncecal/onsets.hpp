@@ -37,15 +37,16 @@
 namespace bouncecal {
 
 struct OnsetOptions {
-  double hop_s = 0.0;                 // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
-  int lpc_order = 48;                 // whitening predictor order (0 = no whitening)
-  double threshold_mads = 4.0;        // threshold = running median + threshold_mads * MAD
-  double min_novelty_db = 2.5;        // and at least this flux (dB) above the running median
-  double median_window_s = 0.3;       // running-median window of the adaptive threshold
-  double min_gap_s = 0.0015;          // peaks closer than this: keep the stronger
-  bool refine = true;                 // AIC sub-sample refinement (else: coarse frame time)
-  double aic_pre_s = 0.002;           // AIC window before the coarse onset
-  double aic_post_s = 0.0008;         // AIC window after the coarse onset
+  double hop_s = 0.0;            // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
+  int lpc_order = 48;            // whitening predictor order (0 = no whitening)
+  double threshold_mads = 4.0;   // threshold = running median + threshold_mads * MAD
+  double min_novelty_db = 2.5;   // and at least this flux (dB) above the running median
+  double median_window_s = 0.3;  // running-median window of the adaptive threshold
+  double min_gap_s = 0.0015;     // peaks closer than this: keep the stronger
+  bool refine = true;          // sub-sample timing; false: each onset reported at the centre of its
+                               // STFT hop (CoarsenToHop) -- the same onsets, frame-resolution times
+  double aic_pre_s = 0.002;    // AIC window before the coarse onset
+  double aic_post_s = 0.0008;  // AIC window after the coarse onset
   double sigma_floor_s = 2e-6;        // sigma floor (quadrature), s ...
   double sigma_floor_samples = 0.25;  // ... or this many samples, whichever is larger
   int aic_upsample = 1;               // band-limited upsampling of the AIC window (1 = none)
@@ -91,6 +92,12 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 std::vector<float> Whiten(const std::vector<float>& x, int order,
                           std::size_t max_fit_samples = 1u << 17);
 
+// Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
+// hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).
+// Detection itself does not change: onsets are located (SNR, template, tracking) at full
+// resolution either way, so refinement off degrades timing only.
+void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz);
+
 struct AicPick {
   double index = 0.0;  // sub-sample index of the first sample of the new regime
   double sigma = 0.0;  // 1-sigma uncertainty, samples
@@ -116,6 +123,7 @@ class OnsetDetector {
   int window_samples() const { return window_; }
 
  private:
+  OnsetResult DetectRefined(const std::vector<float>& samples) const;
   struct Fft;
   struct Correlator;
   OnsetOptions options_;

@@ -963,6 +963,8 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
   double e_min = std::numeric_limits<double>::infinity(), e_max = -e_min;
   for (const auto& d : result.truth) {
     for (const TruthImpact& t : d) {
+      // A last impact the simulator ended as stuck/at rest has v_out = 0: not a restitution.
+      if (!(t.v_out_m_s > 0.0)) continue;
       e_min = std::min(e_min, t.e());
       e_max = std::max(e_max, t.e());
     }

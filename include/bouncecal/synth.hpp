@@ -245,7 +245,8 @@ std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& drop)
 //  "time_convention", "preset", "seed", "scene": {...}, "scene_toml", "truth_source",
 //  "restitution": {...} (truth_source "restitution") or "law": {"name", "parameters": {NAME:
 //  value, every parameter the law was created with}, "units": {NAME: unit}, "expression"}
-//  (truth_source "law"), "truth_options", "e_range": [min, max] over all impacts,
+//  (truth_source "law"), "truth_options", "e_range": [min, max] over the impacts
+//  with a rebound (v_out > 0),
 //  "render": {...}, "drops": [{"impacts": [{"index", "time_s", "onset_s", "v_in_m_s",
 //  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped", "amplitude_per_channel",
 //  "snr_db_per_channel"}...]}], "distractors": [...]}

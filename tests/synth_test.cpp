@@ -247,6 +247,22 @@ TEST(TruthFromLaw, StuckLawGivesOneImpactAndBadInputIsRejected) {
   const auto one = ImpactsFromLaw(stuck);
   ASSERT_EQ(one.size(), 1u);
   EXPECT_LT(one[0].v_out_m_s, 1e-3);
+  // The simulator ends a slow contact as stuck (v_out = 0) once the ball creeps below the rest
+  // speed: that impact is kept (it is heard) but is no restitution, so e_range leaves it out.
+  SynthSpec spec = SynthPreset("steel-copper");
+  spec.scene = SteelScene(0.2);
+  spec.scene.law.name = "hertz-tsuji";
+  spec.scene.law.parameters["e"] = 0.92;
+  spec.scene.limits.rest_speed_m_s = 0.01;
+  spec.truth.min_interval_s = 1e-4;
+  spec.truth_source = TruthSource::kLaw;
+  spec.render = Quiet(16000);
+  const SynthResult sr = Synthesize(spec);
+  ASSERT_GE(sr.truth[0].size(), 10u);
+  EXPECT_EQ(sr.truth[0].back().v_out_m_s, 0.0);
+  const nlohmann::json sj = TruthJson(spec, sr);
+  EXPECT_NEAR(sj.at("e_range")[0].get<double>(), 0.92, 0.01);
+  EXPECT_NEAR(sj.at("e_range")[1].get<double>(), 0.92, 0.01);
 
   TruthOptions fixed;
   fixed.contact_s = 1e-4;

@@ -21,8 +21,7 @@ void CheckOutputPath(const std::string& path, const WriteOptions& options) {
   fs::path dir = target.parent_path();
   if (dir.empty()) dir = ".";
   if (!fs::is_directory(dir, ec)) {
-    throw Error(ErrorCode::kOutput,
-                path + ": directory '" + dir.string() + "' does not exist");
+    throw Error(ErrorCode::kOutput, path + ": directory '" + dir.string() + "' does not exist");
   }
   if (fs::is_directory(target, ec)) {
     throw Error(ErrorCode::kOutput, path + ": is a directory");
@@ -59,8 +58,8 @@ void WriteFileAtomically(const std::string& path, const std::string& contents,
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) {
-      throw Error(ErrorCode::kOutput,
-                  path + ": cannot create a file in '" + dir.string() + "': " + std::strerror(errno));
+      throw Error(ErrorCode::kOutput, path + ": cannot create a file in '" + dir.string() +
+                                          "': " + std::strerror(errno));
     }
     out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
     out.flush();

@@ -12,8 +12,8 @@
 namespace bouncecal {
 
 struct WriteOptions {
-  bool force = false;                 // replace an existing file
-  std::vector<std::string> inputs;    // paths that must never be overwritten
+  bool force = false;               // replace an existing file
+  std::vector<std::string> inputs;  // paths that must never be overwritten
 };
 
 // Throws Error(kOutput) naming the path: directory missing, target exists without force,

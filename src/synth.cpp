@@ -2,6 +2,8 @@
 // recording of it (see include/bouncecal/synth.hpp for the model and the time convention).
 #include "bouncecal/synth.hpp"
 
+#include "bouncecal/kinematics.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <complex>
@@ -334,22 +336,9 @@ bool TruthOptions::IsValid(std::string* error) const {
 }
 
 double HertzContactDuration(const Scene& scene, double v_m_s) {
-  const double e_b = scene.ball.ResolvedYoungsModulusPa();
-  const double nu_b = scene.ball.ResolvedPoissonRatio();
-  const double e_s = scene.surface.ResolvedYoungsModulusPa();
-  const double nu_s = scene.surface.ResolvedPoissonRatio();
-  if (!(e_b > 0 && e_s > 0 && Finite(nu_b) && Finite(nu_s))) {
-    throw Error(ErrorCode::kBadScene,
-                "contact duration: Young's modulus/Poisson ratio unknown for ball material '" +
-                    scene.ball.material + "' or surface material '" + scene.surface.material +
-                    "' (give youngs_modulus_pa and poisson_ratio, or a contact duration)");
-  }
+  // One Hertz formula for the whole project (kinematics.hpp); no contact without a speed.
   if (!(v_m_s > 0.0)) return 0.0;
-  const double e_star = 1.0 / ((1.0 - nu_b * nu_b) / e_b + (1.0 - nu_s * nu_s) / e_s);
-  const double m = scene.ball.Mass();
-  const double r = scene.ball.Radius();
-  // Hertz contact time (PHYSICS.md §2; Johnson, Contact Mechanics 1985, eq. 11.24).
-  return 2.87 * std::pow(m * m / (r * e_star * e_star * v_m_s), 0.2);
+  return HertzContactTime(scene, v_m_s);
 }
 
 std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const RestitutionModel& model,

@@ -1,6 +1,6 @@
 // Tests of audio input/output (audio.hpp): round trips of every written format and subtype,
 // extreme rates and channel counts, channel selection, clipping reports and every bad input.
-#include "bouncecal/audio.hpp"
+#include "bouncecal/acoustic/audio.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/error.hpp"
+#include "bouncecal/core/error.hpp"
 
 namespace bouncecal {
 namespace {

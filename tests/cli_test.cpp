@@ -19,8 +19,8 @@
 #include <sndfile.h>
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,5 +1,5 @@
 // The detect pipeline (channel selection + onsets + tracking) and `bouncecal detect`.
-#include "bouncecal/detect.hpp"
+#include "bouncecal/acoustic/detect.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -14,8 +14,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,6 +1,6 @@
 // Tests for the exact vertical flight (flight.hpp): vacuum oracles, drag limits, the inverse,
 // energy, and a brute-force RK4 integration of the equations of motion.
-#include "bouncecal/flight.hpp"
+#include "bouncecal/physics/flight.hpp"
 
 #include <cmath>
 #include <functional>
@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "bouncecal/error.hpp"
+#include "bouncecal/core/error.hpp"
 
 namespace bouncecal {
 namespace {

@@ -7,10 +7,10 @@
 #include <cmath>
 #include <cstdio>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 #include "law_oracle.hpp"
-#include "laws/jiang_liu.hpp"
+#include "physics/laws/jiang_liu.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,7 +1,7 @@
 // Tests for kinematics (kinematics.hpp): the vacuum oracle e = dt_k / dt_{k-1}, the seed's
 // numbers, exact round trips with drag/buoyancy/contact duration, and the propagated sigmas
 // against a Monte Carlo simulation.
-#include "bouncecal/kinematics.hpp"
+#include "bouncecal/fit/kinematics.hpp"
 
 #include <cmath>
 #include <random>
@@ -9,8 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/flight.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/flight.hpp"
 
 namespace bouncecal {
 namespace {

@@ -19,7 +19,7 @@
 
 #include <boost/numeric/odeint.hpp>
 
-#include "bouncecal/contact_law.hpp"
+#include "bouncecal/physics/contact_law.hpp"
 
 namespace oracle {
 

@@ -14,10 +14,10 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 #include "law_oracle.hpp"
-#include "laws/hertz_family.hpp"
+#include "physics/laws/hertz_family.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,6 +1,6 @@
 // Onset detection: whitening, AIC picker, sub-sample timing of rendered clicks, level
 // independence.
-#include "bouncecal/onsets.hpp"
+#include "bouncecal/acoustic/onsets.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,8 +8,8 @@
 #include <cmath>
 #include <random>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 namespace bouncecal {
 namespace {

@@ -7,12 +7,12 @@
 #include <fstream>
 #include <random>
 
-#include "bouncecal/calibrate.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/param_file.hpp"
-#include "bouncecal/provenance.hpp"
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/fit/calibrate.hpp"
+#include "bouncecal/io/param_file.hpp"
+#include "bouncecal/io/provenance.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
 
 namespace bouncecal {
 namespace {

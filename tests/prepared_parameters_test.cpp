@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
 
 namespace bouncecal {
 namespace {

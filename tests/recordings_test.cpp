@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/detect.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/detect.hpp"
 
 namespace bouncecal {
 namespace {

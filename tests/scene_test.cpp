@@ -1,6 +1,6 @@
 // Tests for scenes (scene.hpp): the TOML format, presets, validation with line numbers, and the
 // round trip SceneToToml -> ParseScene.
-#include "bouncecal/scene.hpp"
+#include "bouncecal/physics/scene.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "bouncecal/error.hpp"
+#include "bouncecal/core/error.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,5 +1,5 @@
 // Bounce-sequence tracker: physically possible chains from onset candidates.
-#include "bouncecal/sequence.hpp"
+#include "bouncecal/acoustic/sequence.hpp"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <cmath>
 #include <random>
 
-#include "bouncecal/error.hpp"
+#include "bouncecal/core/error.hpp"
 
 namespace bouncecal {
 namespace {

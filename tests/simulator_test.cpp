@@ -1,6 +1,6 @@
 // Simulator tests: analytic oracles (geometric series, closed-form contacts, exact flights),
 // then properties (effects change what they should, energy ledger balances, clean stops).
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/physics/simulator.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,10 +11,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/contact_integrator.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/flight.hpp"
-#include "bouncecal/law_registry.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/contact_integrator.hpp"
+#include "bouncecal/physics/flight.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 
 namespace bouncecal {
 namespace {

@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,7 +1,7 @@
 // Tests of the test-recording renderer (synth.hpp): truth against closed-form flights, the
 // rendered sound against a numerical convolution, timing/causality, determinism, SNR, clipping,
 // channels, presets, the truth JSON and the `bouncecal synth` command.
-#include "bouncecal/synth.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -15,10 +15,10 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
 
 namespace bouncecal {
 namespace {

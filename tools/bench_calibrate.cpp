@@ -21,14 +21,14 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/calibrate.hpp"
-#include "bouncecal/detect.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/flight.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/simulator.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/fit/calibrate.hpp"
+#include "bouncecal/physics/flight.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 using namespace bouncecal;
 

@@ -40,10 +40,10 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/detect.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 namespace fs = std::filesystem;
 using namespace bouncecal;

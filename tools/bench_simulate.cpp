@@ -22,9 +22,9 @@
 #include <string>
 #include <vector>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
 
 using namespace bouncecal;
 

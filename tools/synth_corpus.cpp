@@ -14,10 +14,10 @@
 #include <filesystem>
 #include <string>
 
-#include "bouncecal/atomic_file.hpp"
-#include "bouncecal/audio.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/core/atomic_file.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/synth/synth.hpp"
 
 namespace {
 

@@ -25,10 +25,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/detect.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/kinematics.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/fit/kinematics.hpp"
 #include "commands.hpp"
 #include "scene_flags.hpp"
 

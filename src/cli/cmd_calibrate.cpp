@@ -17,13 +17,13 @@
 #include <sstream>
 #include <thread>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/calibrate.hpp"
-#include "bouncecal/detect.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/param_file.hpp"
-#include "bouncecal/provenance.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/fit/calibrate.hpp"
+#include "bouncecal/io/param_file.hpp"
+#include "bouncecal/io/provenance.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 #include "scene_flags.hpp"
 

@@ -18,9 +18,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/audio.hpp"
-#include "bouncecal/detect.hpp"
-#include "bouncecal/error.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
 #include "commands.hpp"
 
 namespace bouncecal::cli {

@@ -11,8 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 
 namespace bouncecal::cli {

@@ -13,9 +13,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/error.hpp"
-#include "bouncecal/law_registry.hpp"
-#include "bouncecal/simulator.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/physics/simulator.hpp"
 #include "commands.hpp"
 #include "scene_flags.hpp"
 

@@ -24,10 +24,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "bouncecal/atomic_file.hpp"
-#include "bouncecal/audio.hpp"
-#include "bouncecal/error.hpp"
-#include "bouncecal/synth.hpp"
+#include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/core/atomic_file.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/synth/synth.hpp"
 #include "commands.hpp"
 #include "scene_flags.hpp"
 

@@ -4,7 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "bouncecal/error.hpp"
+#include "bouncecal/core/error.hpp"
 #include "commands.hpp"
 
 int main(int argc, char** argv) {

@@ -12,7 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "bouncecal/error.hpp"
+#include "bouncecal/core/error.hpp"
 
 namespace bouncecal::cli {
 namespace {

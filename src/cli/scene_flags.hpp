@@ -8,7 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "bouncecal/scene.hpp"
+#include "bouncecal/physics/scene.hpp"
 
 namespace bouncecal::cli {
 

@@ -1,0 +1,90 @@
+// bouncecal/acoustic/audio.hpp — reading and writing recordings through libsndfile.
+//
+// Every format libsndfile reads (WAV 16/24/32-bit int and float, FLAC, OGG/Vorbis, AIFF, ...),
+// any sample rate, any channel count. Samples are float in [-1, 1] (float files may exceed it).
+//
+//   Audio a = ReadAudio("drop.wav");                  // throws Error naming the file
+//   std::vector<float> x = SelectChannel(a, ParseChannelSelection("auto"));
+//
+// Errors (Error codes in error.hpp): kInputMissing (missing, directory, unreadable),
+// kNotAudio (not audio, unsupported, truncated, zero frames), kBadSamples (NaN/Inf).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace bouncecal {
+
+struct AudioInfo {
+  std::string path;
+  double sample_rate_hz = 0.0;
+  int channels = 0;
+  std::int64_t frames = 0;
+  std::string format;   // "WAV", "FLAC", ...
+  std::string subtype;  // "PCM_16", "FLOAT", ...
+  double duration_s() const {
+    return sample_rate_hz > 0 ? static_cast<double>(frames) / sample_rate_hz : 0.0;
+  }
+};
+
+// Sample rates ReadAudio accepts (Hz); others are Error(kNotAudio, "unsupported sample rate").
+inline constexpr int kMinSampleRateHz = 8000;
+inline constexpr int kMaxSampleRateHz = 384000;
+// A clip is a run of at least this many consecutive samples at the channel's extreme value.
+inline constexpr std::int64_t kMinClipRun = 3;
+
+// Clipping (hard clip or brick-wall limiter): runs of >= kMinClipRun consecutive samples equal
+// to the channel's most positive or most negative value. A clean peak (one or two samples at
+// the maximum) is not clipping.
+struct ClippingReport {
+  int channel = 0;
+  std::int64_t clipped_samples = 0;  // samples in runs at the channel's extreme value
+  std::int64_t clipped_runs = 0;     // number of such runs (plateaus)
+  double peak = 0.0;                 // max |x|
+  double clip_level = 0.0;           // |x| of the plateaus when clipped, else 0
+  bool clipped() const { return clipped_samples > 0; }
+};
+ClippingReport AnalyzeClipping(const std::vector<float>& samples, int channel);
+
+struct Audio {
+  AudioInfo info;
+  std::vector<std::vector<float>> channels;  // channels[c][frame]
+  std::vector<ClippingReport> clipping;      // one per channel
+};
+
+Audio ReadAudio(const std::string& path);
+
+// Which channel the detector listens to.
+struct ChannelSelection {
+  enum class Kind { kIndex, kMix, kAuto };
+  Kind kind = Kind::kAuto;
+  int index = 0;  // 0-based, for kIndex
+};
+// "0", "1", ... (0-based), "mix", "auto". Throws Error(kUsage) otherwise.
+ChannelSelection ParseChannelSelection(const std::string& text);
+
+struct SelectedSignal {
+  std::vector<float> samples;
+  int channel = -1;                   // the channel used; -1 for a mix
+  std::vector<double> channel_score;  // impact-to-noise ratio (dB) per channel, for auto
+};
+// Impact-to-noise ratio of one channel (dB), the score behind "auto": on the first difference
+// d of the signal (a high-pass that keeps click attacks, drops hum), 20 log10 of the 99.99th
+// percentile of |d| over the median |d|.
+double ImpactToNoiseDb(const std::vector<float>& samples);
+// Throws Error(kUsage) for an index past the channel count.
+SelectedSignal SelectChannel(const Audio& audio, const ChannelSelection& selection);
+
+struct AudioWriteOptions {
+  std::string subtype = "PCM_16";  // PCM_16, PCM_24, PCM_32, FLOAT, VORBIS (format from extension)
+};
+// Writes channels[c][frame] to path; format from the extension (.wav .flac .ogg/.oga .aiff .aif).
+// Atomic (atomic_file.hpp semantics, force = true: callers enforce --force themselves).
+// Values beyond full scale saturate in integer subtypes. Throws Error(kOutput) for an unknown
+// extension/subtype or a failed write, Error(kBadParameter) for ragged channels, NaN/Inf
+// samples or a non-integer sample rate.
+void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& channels,
+                double sample_rate_hz, const AudioWriteOptions& options = {});
+
+}  // namespace bouncecal

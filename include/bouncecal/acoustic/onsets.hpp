@@ -1,0 +1,138 @@
+// bouncecal/acoustic/onsets.hpp — impact onsets in one channel: whitening, spectral novelty,
+// adaptive threshold, peak picking and sub-sample change-point refinement.
+//
+// An impact is a short broadband click on top of plate ringing that can last a second. The
+// detector therefore works on the *whitened* signal: one linear predictor (order ~32) fitted to
+// the whole recording (Levinson-Durbin on the autocorrelation) predicts the stationary ringing
+// away; its prediction error keeps the clicks. On the whitened signal:
+//   1. a short-hop STFT (FFTW, plans made once in the constructor and reused) gives a relative
+//      spectral flux: the half-wave rectified per-bin power increase divided by the previous
+//      frame's power (level-independent), in dB;
+//   2. an adaptive threshold (running median + k * MAD) and peak picking with a minimum gap give
+//      coarse onsets;
+//   3. each onset is refined on the waveform with an AIC change-point picker (Maeda 1985;
+//      Zhang, Thurber & Rowe 2003, BSSA 93(5), eq. 2) with parabolic interpolation of the AIC
+//      minimum, and gets a timing uncertainty sigma_s from the AIC curvature (AIC ~ -2 log L, so
+//      the 1-sigma half width is where AIC rises by 1) plus a floor;
+//   4. the whitened waveform of the strongest onset is a template: every onset whose normalised
+//      cross-correlation with it reaches template_timing_ncc is timed by the lag of the NCC peak
+//      relative to the template (level-independent and 3-10x more consistent than per-impact AIC
+//      picks, which move with the level and jump on weak onsets); the template's own AIC pick
+//      anchors these times. The template also finds onsets the flux missed.
+//
+//   OnsetDetector det(OnsetOptions{}, rate_hz);       // makes the FFTW plans
+//   OnsetResult r = det.Detect(samples);               // r.onsets sorted by time
+//
+// Common mistakes: the times are *onsets* (first arriving sound), not peaks; sigma_s is a
+// per-impact estimate, not including a constant offset (microphone distance) that cancels in
+// intervals. An OnsetDetector is not thread-safe; use one per thread.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bouncecal/acoustic/detect.hpp"
+
+namespace bouncecal {
+
+struct OnsetOptions {
+  double hop_s = 0.0;            // STFT hop; 0 = auto (power of two samples nearest 0.33 ms)
+  int lpc_order = 48;            // whitening predictor order (0 = no whitening)
+  double threshold_mads = 4.0;   // threshold = running median + threshold_mads * MAD
+  double min_novelty_db = 2.5;   // and at least this flux (dB) above the running median
+  double median_window_s = 0.3;  // running-median window of the adaptive threshold
+  double min_gap_s = 0.0015;     // peaks closer than this: keep the stronger
+  bool refine = true;          // sub-sample timing; false: each onset reported at the centre of its
+                               // STFT hop (CoarsenToHop) -- the same onsets, frame-resolution times
+  double aic_pre_s = 0.002;    // AIC window before the coarse onset
+  double aic_post_s = 0.0008;  // AIC window after the coarse onset
+  double sigma_floor_s = 2e-6;        // sigma floor (quadrature), s ...
+  double sigma_floor_samples = 0.25;  // ... or this many samples, whichever is larger
+  int aic_upsample = 1;               // band-limited upsampling of the AIC window (1 = none)
+  double template_s = 0.0015;         // template length (whitened strongest impact)
+  double template_threshold = 0.4;    // NCC above which a template match is a candidate (>= 1: off)
+  double template_timing_ncc = 0.4;   // NCC from which the template lag times an onset (>= 1: AIC)
+  bool IsValid(std::string* error) const;
+};
+
+struct OnsetResult {
+  std::vector<Impact> onsets;        // sorted by time_s
+  std::vector<float> whitened;       // prediction error, same length as the input
+  std::vector<double> novelty_db;    // one value per STFT frame
+  std::vector<double> threshold_db;  // one value per STFT frame
+  int hop_samples = 0;
+  int window_samples = 0;
+  double noise_rms = 0.0;  // robust rms of the whitened signal
+  // The template (whitened waveform of the strongest onset), for FindByTemplate. Empty if none.
+  std::vector<double> template_wave;
+  long template_start = 0;        // sample of `whitened` where the template starts
+  double template_onset_s = 0.0;  // onset time of the template's impact
+  double rate_hz = 0.0;
+  double sigma_floor_s = 0.0;  // timing floor used for these onsets
+};
+
+// Guided search (the tracker knows where the next impact should be): the best normalised
+// cross-correlation of the template with the whitened signal for onsets within
+// [t_center_s - half_window_s, t_center_s + half_window_s]. Near the noise level (NCC ~0.35) a
+// noise peak can match as well as the impact, so positions are ranked by
+// NCC - edge_penalty * ((t - t_center_s) / half_window_s)^2 (the prediction is best at the
+// centre). Returns true and fills *out (time from the NCC peak, parabolic interpolation; sigma
+// from the NCC; score = NCC; amplitude from `samples`) when the chosen NCC reaches min_ncc.
+bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples, double t_center_s,
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty = 0.0);
+
+// Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
+// e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin
+// (Makhoul 1975, Proc. IEEE 63(4), eqs. 38-45). r[0] must be > 0.
+std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
+
+// Fits the predictor to x (autocorrelation method, at most max_fit_samples spread over x) and
+// returns the prediction error (same length; the first `order` samples use the available past).
+std::vector<float> Whiten(const std::vector<float>& x, int order,
+                          std::size_t max_fit_samples = 1u << 17);
+
+// Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
+// hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).
+// Detection itself does not change: onsets are located (SNR, template, tracking) at full
+// resolution either way, so refinement off degrades timing only.
+void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz);
+
+struct AicPick {
+  double index = 0.0;  // sub-sample index of the first sample of the new regime
+  double sigma = 0.0;  // 1-sigma uncertainty, samples
+  bool valid = false;  // false if the window is too short or flat
+};
+// AIC change-point picker on x[begin, end): AIC(k) = k log var(x[begin..k]) +
+// (n-k-1) log var(x[k+1..end)) (Maeda 1985), parabolic interpolation of the minimum.
+// upsample > 1: the window is first interpolated band-limited (windowed sinc) by that factor,
+// so the change point is located on a finer grid than the samples.
+AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end, int upsample = 1);
+
+class OnsetDetector {
+ public:
+  // Throws Error(kBadParameter) if options are invalid or rate_hz <= 0.
+  OnsetDetector(const OnsetOptions& options, double rate_hz);
+  ~OnsetDetector();
+  OnsetDetector(const OnsetDetector&) = delete;
+  OnsetDetector& operator=(const OnsetDetector&) = delete;
+
+  OnsetResult Detect(const std::vector<float>& samples) const;
+
+  int hop_samples() const { return hop_; }
+  int window_samples() const { return window_; }
+
+ private:
+  OnsetResult DetectRefined(const std::vector<float>& samples) const;
+  struct Fft;
+  struct Correlator;
+  OnsetOptions options_;
+  double rate_hz_;
+  int hop_ = 0;
+  int window_ = 0;
+  std::unique_ptr<Fft> fft_;
+  int template_len_ = 0;
+  std::unique_ptr<Correlator> corr_;
+};
+
+}  // namespace bouncecal

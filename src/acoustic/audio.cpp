@@ -1,0 +1,438 @@
+// Reading and writing recordings through libsndfile (see include/bouncecal/acoustic/audio.hpp).
+#include "bouncecal/acoustic/audio.hpp"
+
+#include <sndfile.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <regex>
+#include <sstream>
+
+#include "bouncecal/core/atomic_file.hpp"
+#include "bouncecal/core/error.hpp"
+
+namespace bouncecal {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct SndfileCloser {
+  void operator()(SNDFILE* f) const {
+    if (f != nullptr) sf_close(f);
+  }
+};
+using SndfilePtr = std::unique_ptr<SNDFILE, SndfileCloser>;
+
+std::string MajorFormatName(int format) {
+  switch (format & SF_FORMAT_TYPEMASK) {
+    case SF_FORMAT_WAV:
+    case SF_FORMAT_WAVEX:
+      return "WAV";
+    case SF_FORMAT_RF64:
+      return "RF64";
+    case SF_FORMAT_W64:
+      return "W64";
+    case SF_FORMAT_AIFF:
+      return "AIFF";
+    case SF_FORMAT_AU:
+      return "AU";
+    case SF_FORMAT_RAW:
+      return "RAW";
+    case SF_FORMAT_FLAC:
+      return "FLAC";
+    case SF_FORMAT_OGG:
+      return "OGG";
+    case SF_FORMAT_CAF:
+      return "CAF";
+    default:
+      break;
+  }
+  SF_FORMAT_INFO info{};
+  info.format = format & SF_FORMAT_TYPEMASK;
+  if (sf_command(nullptr, SFC_GET_FORMAT_INFO, &info, sizeof(info)) == 0 && info.extension) {
+    std::string ext = info.extension;
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    return ext;
+  }
+  return "format 0x" + std::to_string(format & SF_FORMAT_TYPEMASK);
+}
+
+struct SubtypeEntry {
+  const char* name;
+  int code;
+};
+constexpr SubtypeEntry kSubtypes[] = {
+    {"PCM_S8", SF_FORMAT_PCM_S8},      {"PCM_U8", SF_FORMAT_PCM_U8},
+    {"PCM_16", SF_FORMAT_PCM_16},      {"PCM_24", SF_FORMAT_PCM_24},
+    {"PCM_32", SF_FORMAT_PCM_32},      {"FLOAT", SF_FORMAT_FLOAT},
+    {"DOUBLE", SF_FORMAT_DOUBLE},      {"ULAW", SF_FORMAT_ULAW},
+    {"ALAW", SF_FORMAT_ALAW},          {"IMA_ADPCM", SF_FORMAT_IMA_ADPCM},
+    {"MS_ADPCM", SF_FORMAT_MS_ADPCM},  {"GSM610", SF_FORMAT_GSM610},
+    {"VORBIS", SF_FORMAT_VORBIS},
+#ifdef SF_FORMAT_OPUS
+    {"OPUS", SF_FORMAT_OPUS},
+#endif
+#ifdef SF_FORMAT_MPEG_LAYER_III
+    {"MP3", SF_FORMAT_MPEG_LAYER_III},
+#endif
+};
+
+std::string SubtypeName(int format) {
+  const int sub = format & SF_FORMAT_SUBMASK;
+  for (const auto& s : kSubtypes) {
+    if (s.code == sub) return s.name;
+  }
+  return "subtype 0x" + std::to_string(sub);
+}
+
+// libsndfile shortens the frame count of a WAV/AIFF whose data chunk declares more bytes than
+// the file holds; its log then says e.g. "data : 96000 (should be 49956)". A declared size of
+// 0 or 0xFFFFFFFF is a streaming placeholder, not a truncation.
+bool LogShowsTruncatedData(SNDFILE* f, std::string* detail) {
+  std::vector<char> log(16384, '\0');
+  sf_command(f, SFC_GET_LOG_INFO, log.data(), static_cast<int>(log.size()));
+  std::istringstream in(std::string(log.data()));
+  static const std::regex kLine(R"(^\s*(data|SSND|DATA)\s*:\s*(\d+)\s*\(should be (\d+)\))");
+  std::string line;
+  while (std::getline(in, line)) {
+    std::smatch m;
+    if (std::regex_search(line, m, kLine)) {
+      const long long declared = std::stoll(m[2].str());
+      const long long present = std::stoll(m[3].str());
+      if (declared > present && declared != 0xFFFFFFFFLL && declared != 0) {
+        *detail = "the " + m[1].str() + " chunk declares " + std::to_string(declared) +
+                  " bytes but only " + std::to_string(present) + " are present";
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+int FormatFromExtension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".wav") return SF_FORMAT_WAV;
+  if (ext == ".flac") return SF_FORMAT_FLAC;
+  if (ext == ".ogg" || ext == ".oga") return SF_FORMAT_OGG;
+  if (ext == ".aiff" || ext == ".aif") return SF_FORMAT_AIFF;
+  throw Error(ErrorCode::kOutput, path + ": unknown audio extension '" + ext +
+                                      "' (expected .wav .flac .ogg .aiff .aif)");
+}
+
+int SubtypeFromName(const std::string& path, const std::string& name) {
+  for (const auto& s : kSubtypes) {
+    if (name == s.name) return s.code;
+  }
+  throw Error(ErrorCode::kOutput, path + ": unknown sample subtype '" + name +
+                                      "' (expected PCM_16, PCM_24, PCM_32, FLOAT or VORBIS)");
+}
+
+// The value at the p-quantile (0..1) of v (v is reordered).
+double Quantile(std::vector<float>* v, double p) {
+  if (v->empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(std::min<double>(
+      static_cast<double>(v->size() - 1), std::floor(p * static_cast<double>(v->size() - 1))));
+  std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(k), v->end());
+  return (*v)[k];
+}
+
+}  // namespace
+
+ClippingReport AnalyzeClipping(const std::vector<float>& x, int channel) {
+  ClippingReport r;
+  r.channel = channel;
+  if (x.empty()) return r;
+  const auto [mn_it, mx_it] = std::minmax_element(x.begin(), x.end());
+  const double mx = *mx_it;
+  const double mn = *mn_it;
+  r.peak = std::max(std::fabs(mx), std::fabs(mn));
+  if (r.peak <= 0.0) return r;
+  // A plateau: >= kMinClipRun consecutive samples equal (within a float rounding step) to the
+  // channel's most positive or most negative value. A clean peak has at most two such samples.
+  const double tol = 1e-6 * r.peak;
+  auto count_runs = [&](auto at_extreme) {
+    std::int64_t run = 0;
+    for (std::size_t i = 0; i <= x.size(); ++i) {
+      if (i < x.size() && at_extreme(x[i])) {
+        ++run;
+        continue;
+      }
+      if (run >= kMinClipRun) {
+        r.clipped_samples += run;
+        ++r.clipped_runs;
+      }
+      run = 0;
+    }
+  };
+  if (mx > 0.0) count_runs([&](float v) { return v >= mx - tol; });
+  if (mn < 0.0) count_runs([&](float v) { return v <= mn + tol; });
+  if (r.clipped_runs > 0) r.clip_level = r.peak;
+  return r;
+}
+
+Audio ReadAudio(const std::string& path) {
+  std::error_code ec;
+  const fs::path p(path);
+  if (path.empty()) throw Error(ErrorCode::kInputMissing, "<empty path>: no file given");
+  if (!fs::exists(p, ec)) throw Error(ErrorCode::kInputMissing, path + ": no such file");
+  if (fs::is_directory(p, ec)) throw Error(ErrorCode::kInputMissing, path + ": is a directory");
+  {
+    std::ifstream probe(p, std::ios::binary);
+    if (!probe) {
+      throw Error(ErrorCode::kInputMissing,
+                  path + ": cannot be opened for reading (" + std::strerror(errno) + ")");
+    }
+  }
+  const auto size = fs::file_size(p, ec);
+  if (!ec && size == 0) throw Error(ErrorCode::kNotAudio, path + ": empty file (0 bytes)");
+
+  SF_INFO sfinfo{};
+  SndfilePtr f(sf_open(path.c_str(), SFM_READ, &sfinfo));
+  if (!f) {
+    throw Error(ErrorCode::kNotAudio,
+                path + ": not an audio file libsndfile can read (" + sf_strerror(nullptr) + ")");
+  }
+  Audio a;
+  a.info.path = path;
+  a.info.sample_rate_hz = sfinfo.samplerate;
+  a.info.channels = sfinfo.channels;
+  a.info.format = MajorFormatName(sfinfo.format);
+  a.info.subtype = SubtypeName(sfinfo.format);
+
+  std::string detail;
+  if (LogShowsTruncatedData(f.get(), &detail)) {
+    throw Error(ErrorCode::kNotAudio, path + ": truncated (" + detail + ")");
+  }
+  if (sfinfo.channels < 1) {
+    throw Error(ErrorCode::kNotAudio,
+                path + ": unsupported channel count " + std::to_string(sfinfo.channels));
+  }
+  if (sfinfo.samplerate < kMinSampleRateHz || sfinfo.samplerate > kMaxSampleRateHz) {
+    throw Error(ErrorCode::kNotAudio, path + ": unsupported sample rate " +
+                                          std::to_string(sfinfo.samplerate) + " Hz (expected " +
+                                          std::to_string(kMinSampleRateHz) + " to " +
+                                          std::to_string(kMaxSampleRateHz) + " Hz)");
+  }
+  if (sfinfo.frames <= 0) {
+    throw Error(ErrorCode::kNotAudio, path + ": no audio frames (zero-length audio data)");
+  }
+
+  // Integer formats come back scaled to [-1, 1) (libsndfile's default normalisation).
+  const int nch = sfinfo.channels;
+  const auto total = static_cast<std::size_t>(sfinfo.frames);
+  a.channels.assign(static_cast<std::size_t>(nch), std::vector<float>());
+  // (A corrupt header may claim absurd lengths: reserve at most 16 Mi frames up front.)
+  for (auto& c : a.channels) c.reserve(std::min<std::size_t>(total, std::size_t{1} << 24));
+  constexpr sf_count_t kBlock = 65536;
+  std::vector<float> buf(static_cast<std::size_t>(kBlock) * static_cast<std::size_t>(nch));
+  std::int64_t read_total = 0;
+  while (read_total < sfinfo.frames) {
+    const sf_count_t want = std::min<sf_count_t>(kBlock, sfinfo.frames - read_total);
+    const sf_count_t got = sf_readf_float(f.get(), buf.data(), want);
+    if (got <= 0) break;
+    for (sf_count_t i = 0; i < got; ++i) {
+      for (int c = 0; c < nch; ++c) {
+        a.channels[static_cast<std::size_t>(c)].push_back(
+            buf[static_cast<std::size_t>(i * nch + c)]);
+      }
+    }
+    read_total += got;
+    if (got < want) break;
+  }
+  if (read_total < sfinfo.frames) {
+    std::string why = sf_strerror(f.get());
+    throw Error(ErrorCode::kNotAudio,
+                path + ": truncated (header says " + std::to_string(sfinfo.frames) +
+                    " frames, only " + std::to_string(read_total) + " could be read" +
+                    (sf_error(f.get()) != SF_ERR_NO_ERROR ? ": " + why : std::string()) + ")");
+  }
+  a.info.frames = read_total;
+
+  for (int c = 0; c < nch; ++c) {
+    const auto& x = a.channels[static_cast<std::size_t>(c)];
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      if (!std::isfinite(x[i])) {
+        char msg[160];
+        std::snprintf(msg, sizeof(msg), ": %s sample in channel %d at frame %zu (%.6f s)",
+                      std::isnan(x[i]) ? "NaN" : "infinite", c, i,
+                      static_cast<double>(i) / a.info.sample_rate_hz);
+        throw Error(ErrorCode::kBadSamples, path + msg);
+      }
+    }
+    a.clipping.push_back(AnalyzeClipping(x, c));
+  }
+  return a;
+}
+
+ChannelSelection ParseChannelSelection(const std::string& text) {
+  ChannelSelection s;
+  if (text == "auto") {
+    s.kind = ChannelSelection::Kind::kAuto;
+    return s;
+  }
+  if (text == "mix") {
+    s.kind = ChannelSelection::Kind::kMix;
+    return s;
+  }
+  if (!text.empty() && text.size() < 6 &&
+      std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isdigit(c); })) {
+    s.kind = ChannelSelection::Kind::kIndex;
+    s.index = std::stoi(text);
+    return s;
+  }
+  throw Error(ErrorCode::kUsage,
+              "--channel: '" + text + "' is not a channel (expected a 0-based index, mix or auto)");
+}
+
+double ImpactToNoiseDb(const std::vector<float>& x) {
+  if (x.size() < 3) return 0.0;
+  // First difference = a crude high-pass: keeps the broadband attack of an impact and removes
+  // hum and low-frequency room noise. Robust peak (99.99th percentile of |d|, so a single
+  // glitch does not win) over the median |d| (the noise floor; impacts fill far less than
+  // half of any recording).
+  std::vector<float> d(x.size() - 1);
+  for (std::size_t i = 1; i < x.size(); ++i) d[i - 1] = std::fabs(x[i] - x[i - 1]);
+  const double peak = Quantile(&d, 0.9999);
+  const double noise = Quantile(&d, 0.5);
+  constexpr double kTiny = 1e-10;  // keeps digital silence finite (about 200 dB)
+  return 20.0 * std::log10((peak + kTiny) / (noise + kTiny));
+}
+
+SelectedSignal SelectChannel(const Audio& audio, const ChannelSelection& selection) {
+  SelectedSignal out;
+  const int nch = static_cast<int>(audio.channels.size());
+  if (nch == 0) throw Error(ErrorCode::kNotAudio, audio.info.path + ": no channels");
+  switch (selection.kind) {
+    case ChannelSelection::Kind::kIndex:
+      if (selection.index < 0 || selection.index >= nch) {
+        throw Error(ErrorCode::kUsage, audio.info.path + ": --channel " +
+                                           std::to_string(selection.index) + " out of range (" +
+                                           std::to_string(nch) + " channel" +
+                                           (nch == 1 ? "" : "s") + ", 0-based)");
+      }
+      out.channel = selection.index;
+      out.samples = audio.channels[static_cast<std::size_t>(selection.index)];
+      return out;
+    case ChannelSelection::Kind::kMix: {
+      out.channel = -1;
+      std::size_t n = audio.channels[0].size();
+      for (const auto& c : audio.channels) n = std::min(n, c.size());
+      std::vector<double> acc(n, 0.0);
+      for (const auto& c : audio.channels) {
+        for (std::size_t i = 0; i < n; ++i) acc[i] += c[i];
+      }
+      out.samples.resize(n);
+      for (std::size_t i = 0; i < n; ++i) out.samples[i] = static_cast<float>(acc[i] / nch);
+      return out;
+    }
+    case ChannelSelection::Kind::kAuto: {
+      int best = 0;
+      for (int c = 0; c < nch; ++c) {
+        out.channel_score.push_back(ImpactToNoiseDb(audio.channels[static_cast<std::size_t>(c)]));
+        if (out.channel_score.back() > out.channel_score[static_cast<std::size_t>(best)]) best = c;
+      }
+      out.channel = best;
+      out.samples = audio.channels[static_cast<std::size_t>(best)];
+      return out;
+    }
+  }
+  return out;
+}
+
+void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& channels,
+                double sample_rate_hz, const AudioWriteOptions& options) {
+  if (channels.empty()) throw Error(ErrorCode::kBadParameter, path + ": no channels to write");
+  const std::size_t frames = channels[0].size();
+  for (const auto& c : channels) {
+    if (c.size() != frames) {
+      throw Error(ErrorCode::kBadParameter, path + ": channels have different lengths");
+    }
+  }
+  if (!(sample_rate_hz >= 1.0) || sample_rate_hz > 1e7 ||
+      std::fabs(sample_rate_hz - std::round(sample_rate_hz)) > 1e-9) {
+    throw Error(ErrorCode::kBadParameter, path + ": sample rate " + std::to_string(sample_rate_hz) +
+                                              " Hz is not a positive whole number of hertz");
+  }
+  for (std::size_t c = 0; c < channels.size(); ++c) {
+    for (std::size_t i = 0; i < frames; ++i) {
+      if (!std::isfinite(channels[c][i])) {
+        throw Error(ErrorCode::kBadParameter, path + ": non-finite sample in channel " +
+                                                  std::to_string(c) + " at frame " +
+                                                  std::to_string(i) + "; nothing written");
+      }
+    }
+  }
+  const int major = FormatFromExtension(path);
+  const int sub = SubtypeFromName(path, options.subtype);
+  SF_INFO sfinfo{};
+  sfinfo.samplerate = static_cast<int>(std::lround(sample_rate_hz));
+  sfinfo.channels = static_cast<int>(channels.size());
+  sfinfo.format = major | sub;
+  if (!sf_format_check(&sfinfo)) {
+    throw Error(ErrorCode::kOutput, path + ": libsndfile cannot write subtype " + options.subtype +
+                                        " in this format (" + std::to_string(channels.size()) +
+                                        " channels, " + std::to_string(sfinfo.samplerate) + " Hz)");
+  }
+  // Same checks as every other output (directory exists, not a directory); WriteAudio
+  // replaces an existing file: callers enforce --force before calling it.
+  CheckOutputPath(path, WriteOptions{.force = true, .inputs = {}});
+
+  const fs::path target(path);
+  fs::path dir = target.parent_path();
+  if (dir.empty()) dir = ".";
+  std::random_device rd;
+  std::string tmp_name(".");  // (built step by step: GCC 12 warns falsely on "." + string)
+  tmp_name += target.filename().string();
+  tmp_name += ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(rd());
+  const fs::path tmp = dir / tmp_name;
+  auto fail = [&](const std::string& why) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw Error(ErrorCode::kOutput, path + ": " + why);
+  };
+  {
+    SndfilePtr f(sf_open(tmp.c_str(), SFM_WRITE, &sfinfo));
+    if (!f) fail(std::string("cannot create the file: ") + sf_strerror(nullptr));
+    // Values beyond full scale saturate instead of wrapping around in integer formats.
+    sf_command(f.get(), SFC_SET_CLIPPING, nullptr, SF_TRUE);
+    if (sub == SF_FORMAT_VORBIS) {
+      double quality = 0.9;
+      sf_command(f.get(), SFC_SET_VBR_ENCODING_QUALITY, &quality, sizeof(quality));
+    }
+    const int nch = sfinfo.channels;
+    constexpr std::size_t kBlock = 65536;
+    std::vector<float> buf(kBlock * static_cast<std::size_t>(nch));
+    for (std::size_t start = 0; start < frames; start += kBlock) {
+      const std::size_t n = std::min(kBlock, frames - start);
+      for (std::size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < nch; ++c) {
+          buf[i * static_cast<std::size_t>(nch) + static_cast<std::size_t>(c)] =
+              channels[static_cast<std::size_t>(c)][start + i];
+        }
+      }
+      const auto wrote = sf_writef_float(f.get(), buf.data(), static_cast<sf_count_t>(n));
+      if (wrote != static_cast<sf_count_t>(n)) {
+        fail(std::string("write failed: ") + sf_strerror(f.get()));
+      }
+    }
+    sf_write_sync(f.get());
+    SNDFILE* raw = f.release();
+    if (sf_close(raw) != 0) fail("closing the file failed");
+  }
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
+  if (ec) fail("cannot rename the temporary file: " + ec.message());
+}
+
+}  // namespace bouncecal

@@ -1,0 +1,753 @@
+// Onset detection: whitening, relative spectral flux on an FFTW STFT, adaptive threshold, peak
+// picking, AIC sub-sample refinement. See include/bouncecal/acoustic/onsets.hpp.
+#include "bouncecal/acoustic/onsets.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <mutex>
+#include <numbers>
+#include <sstream>
+
+#include "bouncecal/core/error.hpp"
+
+namespace bouncecal {
+namespace {
+
+// Median of v (copied), robust and O(n).
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// Robust rms of x from the median absolute value (Gaussian: rms = median|x| / 0.6745),
+// on at most ~16k samples spread over x.
+double RobustRms(const std::vector<float>& x) {
+  if (x.empty()) return 0.0;
+  const std::size_t step = std::max<std::size_t>(1, x.size() / 16384);
+  std::vector<double> a;
+  a.reserve(x.size() / step + 1);
+  for (std::size_t i = 0; i < x.size(); i += step) a.push_back(std::fabs(x[i]));
+  return Median(std::move(a)) / 0.6745;
+}
+
+// FFTW's planner (plan creation and destruction) is not thread-safe; execution of distinct
+// plans is. This module-local mutex serialises the planner calls of all OnsetDetectors.
+std::mutex& PlannerMutex() {
+  static std::mutex m;
+  return m;
+}
+
+// Frames averaged into the novelty's reference spectrum (~3 ms at the default hop).
+constexpr std::size_t kRefFrames = 8;
+
+int NearestPowerOfTwo(double v) {
+  int p = 1;
+  while (p * 2 <= v * std::numbers::sqrt2) p *= 2;
+  return p;
+}
+
+}  // namespace
+
+bool OnsetOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(hop_s >= 0.0) || hop_s > 0.05)
+    return fail("OnsetOptions::hop_s = " + std::to_string(hop_s) + ": must be in [0, 0.05] s");
+  if (lpc_order < 0 || lpc_order > 256)
+    return fail("OnsetOptions::lpc_order = " + std::to_string(lpc_order) + ": must be 0..256");
+  if (!(threshold_mads > 0.0)) return fail("OnsetOptions::threshold_mads must be > 0");
+  if (!(min_novelty_db >= 0.0)) return fail("OnsetOptions::min_novelty_db must be >= 0");
+  if (!(median_window_s > 0.0)) return fail("OnsetOptions::median_window_s must be > 0");
+  if (!(min_gap_s >= 0.0)) return fail("OnsetOptions::min_gap_s must be >= 0");
+  if (!(aic_pre_s > 0.0) || !(aic_post_s > 0.0))
+    return fail("OnsetOptions::aic_pre_s and aic_post_s must be > 0");
+  if (!(sigma_floor_s >= 0.0)) return fail("OnsetOptions::sigma_floor_s must be >= 0");
+  if (aic_upsample < 1 || aic_upsample > 64)
+    return fail("OnsetOptions::aic_upsample = " + std::to_string(aic_upsample) + ": must be 1..64");
+  if (!(template_s >= 1e-4) || template_s > 0.02)
+    return fail("OnsetOptions::template_s must be in [1e-4, 0.02] s");
+  if (!(template_threshold > 0.0)) return fail("OnsetOptions::template_threshold must be > 0");
+  if (!(template_timing_ncc > 0.0))
+    return fail("OnsetOptions::template_timing_ncc must be > 0 (>= 1: AIC timing only)");
+  return true;
+}
+
+std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order) {
+  assert(static_cast<int>(r.size()) > order && r[0] > 0.0);
+  std::vector<double> a(static_cast<std::size_t>(order) + 1, 0.0), prev;
+  a[0] = 1.0;
+  double err = r[0];
+  for (int i = 1; i <= order; ++i) {
+    double acc = r[static_cast<std::size_t>(i)];
+    for (int j = 1; j < i; ++j)
+      acc += a[static_cast<std::size_t>(j)] * r[static_cast<std::size_t>(i - j)];
+    const double k = -acc / err;  // reflection coefficient (Makhoul 1975, eq. 38c)
+    prev = a;
+    for (int j = 1; j < i; ++j)
+      a[static_cast<std::size_t>(j)] += k * prev[static_cast<std::size_t>(i - j)];
+    a[static_cast<std::size_t>(i)] = k;
+    err *= (1.0 - k * k);
+    if (!(err > r[0] * 1e-12)) break;  // numerically singular: keep the order reached
+  }
+  return a;
+}
+
+std::vector<float> Whiten(const std::vector<float>& x, int order, std::size_t max_fit_samples) {
+  const std::size_t n = x.size();
+  if (order <= 0 || n <= static_cast<std::size_t>(order) * 4) return x;
+  // Autocorrelation on blocks spread over the file (all of it when short). The lag products
+  // only run inside a block, so blocks are long compared with the order.
+  const std::size_t block = 4096;
+  const std::size_t nblocks_total = (n + block - 1) / block;
+  const std::size_t nblocks_fit = std::max<std::size_t>(1, max_fit_samples / block);
+  const std::size_t stride = std::max<std::size_t>(1, nblocks_total / nblocks_fit);
+  std::vector<double> r(static_cast<std::size_t>(order) + 1, 0.0);
+  for (std::size_t b = 0; b < nblocks_total; b += stride) {
+    const std::size_t s = b * block;
+    const std::size_t e = std::min(n, s + block);
+    for (int lag = 0; lag <= order; ++lag) {
+      // Eight independent float partial sums (instruction-level parallelism; a block of 4096
+      // products is well inside float precision), summed in double per block.
+      const std::size_t l = static_cast<std::size_t>(lag);
+      float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+      std::size_t i = s + l;
+      for (; i + 8 <= e; i += 8)
+        for (std::size_t q = 0; q < 8; ++q) acc[q] += x[i + q] * x[i + q - l];
+      double total = 0.0;
+      for (; i < e; ++i) total += static_cast<double>(x[i]) * x[i - l];
+      for (float a : acc) total += a;
+      r[l] += total;
+    }
+  }
+  if (!(r[0] > 0.0)) return x;
+  // A little white-noise floor (-60 dB) keeps the predictor stable on pure tones
+  // (lag-window / "white noise correction", Makhoul 1975 sec. III-D).
+  r[0] *= 1.0 + 1e-6;
+  const std::vector<double> a = LevinsonDurbin(r, order);
+  // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block).
+  std::vector<float> out(x);
+  std::vector<float> af(a.size());
+  for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
+  const std::size_t blk = 2048;
+  for (std::size_t b0 = 0; b0 < n; b0 += blk) {
+    const std::size_t b1 = std::min(n, b0 + blk);
+    for (std::size_t j = 1; j < af.size(); ++j) {
+      const float aj = af[j];
+      const std::size_t start = std::max(b0, j);
+      float* o = out.data();
+      const float* in = x.data() - j;
+      for (std::size_t i = start; i < b1; ++i) o[i] += aj * in[i];
+    }
+  }
+  return out;
+}
+
+namespace {
+
+// AIC change point of y (Maeda 1985) with parabolic interpolation of the minimum; `units`
+// samples of y per sample of the original signal (y may be upsampled: its AIC then counts each
+// original sample `units` times, so the likelihood scale is divided by it).
+AicPick AicOn(const std::vector<double>& y, double units) {
+  AicPick pick;
+  const std::size_t n = y.size();
+  std::vector<double> s1(n + 1, 0.0), s2(n + 1, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    s1[i + 1] = s1[i] + y[i];
+    s2[i + 1] = s2[i] + y[i] * y[i];
+  }
+  const double tiny = 1e-30 + 1e-12 * s2[n] / static_cast<double>(n);
+  const std::size_t kmin = static_cast<std::size_t>(3 * units), kmax = n - kmin - 1;
+  if (kmax <= kmin + 2) return pick;
+  std::vector<double> aic(n, 0.0);
+  auto var = [&](std::size_t a, std::size_t b) {  // variance of y[a, b)
+    const double m = static_cast<double>(b - a);
+    const double mu = (s1[b] - s1[a]) / m;
+    return std::max((s2[b] - s2[a]) / m - mu * mu, 0.0) + tiny;
+  };
+  std::size_t best = kmin;
+  for (std::size_t k = kmin; k <= kmax; ++k) {
+    // Maeda (1985): AIC(k) = k log var(x[1..k]) + (N - k - 1) log var(x[k+1..N]).
+    aic[k] = static_cast<double>(k) * std::log(var(0, k + 1)) +
+             static_cast<double>(n - k - 1) * std::log(var(k + 1, n));
+    if (aic[k] < aic[best]) best = k;
+  }
+  double delta = 0.0, curv = 0.0;
+  if (best > kmin && best < kmax) {
+    curv = aic[best - 1] - 2.0 * aic[best] + aic[best + 1];
+    if (curv > 0.0) delta = std::clamp(0.5 * (aic[best - 1] - aic[best + 1]) / curv, -0.5, 0.5);
+  }
+  // The new regime starts between y[best] and y[best + 1].
+  pick.index = (static_cast<double>(best) + 0.5 + delta) / units;
+  // AIC ~ -2 log L (x units): the 1-sigma half width is where it rises by 1.
+  pick.sigma = curv > 0.0 ? std::sqrt(2.0 * units / curv) / units : 0.5;
+  pick.valid = true;
+  return pick;
+}
+
+}  // namespace
+
+AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end, int upsample) {
+  AicPick pick;
+  end = std::min(end, x.size());
+  if (end <= begin + 16 || upsample < 1) return pick;
+  const std::size_t n = end - begin;
+  const std::size_t u = static_cast<std::size_t>(upsample);
+  std::vector<double> y(n * u);
+  if (u == 1) {
+    for (std::size_t i = 0; i < n; ++i) y[i] = x[begin + i];
+  } else {
+    // Band-limited interpolation: Hann-windowed sinc, half width kHalf samples, using the
+    // samples around the window too (the signal continues beyond it).
+    constexpr long kHalf = 8;
+    const long xs = static_cast<long>(x.size());
+    for (std::size_t j = 0; j < n * u; ++j) {
+      const double t = static_cast<double>(begin) + static_cast<double>(j) / static_cast<double>(u);
+      const long m0 = static_cast<long>(std::floor(t));
+      double acc = 0.0;
+      for (long m = m0 - kHalf + 1; m <= m0 + kHalf; ++m) {
+        if (m < 0 || m >= xs) continue;
+        const double d = t - static_cast<double>(m);
+        const double sinc = std::fabs(d) < 1e-12 ? 1.0 : std::sin(M_PI * d) / (M_PI * d);
+        const double win = 0.5 + 0.5 * std::cos(M_PI * d / static_cast<double>(kHalf));
+        acc += x[static_cast<std::size_t>(m)] * sinc * win;
+      }
+      y[j] = acc;
+    }
+  }
+  pick = AicOn(y, static_cast<double>(u));
+  if (pick.valid) pick.index += static_cast<double>(begin);
+  return pick;
+}
+
+struct OnsetDetector::Fft {
+  int n = 0;
+  double* in = nullptr;
+  fftw_complex* out = nullptr;
+  fftw_plan plan = nullptr;
+  std::vector<double> window;
+  explicit Fft(int size) : n(size) {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    in = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
+    out = static_cast<fftw_complex*>(
+        fftw_malloc(sizeof(fftw_complex) * static_cast<std::size_t>(n / 2 + 1)));
+    plan = fftw_plan_dft_r2c_1d(n, in, out, FFTW_ESTIMATE);
+    window.resize(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i)  // periodic Hann
+      window[static_cast<std::size_t>(i)] =
+          0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * i / static_cast<double>(n));
+  }
+  ~Fft() {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    fftw_destroy_plan(plan);
+    fftw_free(in);
+    fftw_free(out);
+  }
+  Fft(const Fft&) = delete;
+  Fft& operator=(const Fft&) = delete;
+};
+
+// Overlap-save FFT correlation of a long signal with a short template (plans made once).
+struct OnsetDetector::Correlator {
+  int n = 0;  // FFT size
+  double* buf = nullptr;
+  fftw_complex* spec = nullptr;
+  fftw_complex* tspec = nullptr;
+  fftw_plan fwd = nullptr, inv = nullptr;
+  explicit Correlator(int size) : n(size) {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    const std::size_t nb = static_cast<std::size_t>(n / 2 + 1);
+    buf = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
+    spec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * nb));
+    tspec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * nb));
+    fwd = fftw_plan_dft_r2c_1d(n, buf, spec, FFTW_ESTIMATE);
+    inv = fftw_plan_dft_c2r_1d(n, spec, buf, FFTW_ESTIMATE);
+  }
+  ~Correlator() {
+    std::lock_guard<std::mutex> lock(PlannerMutex());
+    fftw_destroy_plan(fwd);
+    fftw_destroy_plan(inv);
+    fftw_free(buf);
+    fftw_free(spec);
+    fftw_free(tspec);
+  }
+  Correlator(const Correlator&) = delete;
+  Correlator& operator=(const Correlator&) = delete;
+
+  // out[i] = sum_j h[j] x[i + j] for i in [0, x.size()), x zero beyond its end.
+  std::vector<float> Correlate(const std::vector<float>& x, const std::vector<double>& h) {
+    const std::size_t nn = static_cast<std::size_t>(n), m = h.size(), nb = nn / 2 + 1;
+    assert(m < nn / 2);
+    std::fill(buf, buf + nn, 0.0);
+    for (std::size_t j = 0; j < m; ++j) buf[j] = h[j];
+    fftw_execute_dft_r2c(fwd, buf, tspec);
+    const std::size_t step = nn - m + 1;  // valid outputs per block
+    std::vector<float> out(x.size());
+    const double scale = 1.0 / static_cast<double>(nn);
+    for (std::size_t b = 0; b < x.size(); b += step) {
+      const std::size_t len = std::min(nn, x.size() - b);
+      for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
+      std::fill(buf + len, buf + nn, 0.0);
+      fftw_execute_dft_r2c(fwd, buf, spec);
+      for (std::size_t k = 0; k < nb; ++k) {  // X * conj(H): correlation
+        const double re = spec[k][0] * tspec[k][0] + spec[k][1] * tspec[k][1];
+        const double im = spec[k][1] * tspec[k][0] - spec[k][0] * tspec[k][1];
+        spec[k][0] = re;
+        spec[k][1] = im;
+      }
+      fftw_execute_dft_c2r(inv, spec, buf);
+      const std::size_t valid = std::min(step, x.size() - b);
+      for (std::size_t i = 0; i < valid; ++i) out[b + i] = static_cast<float>(buf[i] * scale);
+    }
+    return out;
+  }
+};
+
+OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
+    : options_(options), rate_hz_(rate_hz) {
+  std::string why;
+  if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz))
+    throw Error(ErrorCode::kBadParameter,
+                "OnsetDetector: sample rate " + std::to_string(rate_hz) + " Hz must be > 0");
+  const double hop_target = options.hop_s > 0.0 ? options.hop_s * rate_hz : 0.00033 * rate_hz;
+  hop_ = std::max(1, NearestPowerOfTwo(hop_target));
+  window_ = std::max(16, 4 * hop_);
+  fft_ = std::make_unique<Fft>(window_);
+  template_len_ = std::max(8, static_cast<int>(std::lround(options.template_s * rate_hz)));
+  int corr_n = 256;
+  while (corr_n < 8 * template_len_) corr_n *= 2;
+  corr_ = std::make_unique<Correlator>(corr_n);
+}
+
+OnsetDetector::~OnsetDetector() = default;
+
+void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz) {
+  const double hop = static_cast<double>(std::max(1, hop_samples));
+  const double frame = std::floor(impact->time_s * rate_hz / hop);
+  impact->time_s = (frame + 0.5) * hop / rate_hz;
+  impact->sigma_s = hop / std::sqrt(12.0) / rate_hz;  // uniform over one hop
+}
+
+OnsetResult OnsetDetector::Detect(const std::vector<float>& x) const {
+  OnsetResult res = DetectRefined(x);
+  if (!options_.refine)
+    for (Impact& im : res.onsets) CoarsenToHop(&im, hop_, rate_hz_);
+  return res;
+}
+
+OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
+  OnsetResult res;
+  res.hop_samples = hop_;
+  res.window_samples = window_;
+  res.rate_hz = rate_hz_;
+  res.sigma_floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
+  res.whitened = Whiten(x, options_.lpc_order);
+  const std::vector<float>& w = res.whitened;
+  res.noise_rms = RobustRms(w);
+  const std::size_t n = w.size();
+  const std::size_t hop = static_cast<std::size_t>(hop_);
+  const std::size_t nw = static_cast<std::size_t>(window_);
+  if (n < nw + hop) return res;
+  const std::size_t frames = (n - nw) / hop + 1;
+  const std::size_t bins = nw / 2 + 1;
+
+  // 1. Relative spectral flux against the recent background: the reference spectrum R_t is
+  // the mean power of kRefFrames frames that end where frame t begins (no overlap with it,
+  // so a click cannot hide in its own reference):
+  //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
+  const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
+  const std::size_t ring = lag + kRefFrames;
+  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num(frames, 0.0), den(frames, 0.0);
+  Fft& f = *fft_;
+  const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
+  for (std::size_t t = 0; t < frames; ++t) {
+    const float* src = w.data() + t * hop;
+    for (std::size_t i = 0; i < nw; ++i) f.in[i] = src[i] * f.window[i];
+    fftw_execute(f.plan);
+    double* cur = spectra.data() + (t % ring) * bins;
+    double up = 0.0, ref_total = 0.0;
+    for (std::size_t k = 0; k < bins; ++k) {
+      const double p = f.out[k][0] * f.out[k][0] + f.out[k][1] * f.out[k][1];
+      const double r = ref[k] * inv_ref;
+      up += std::max(p - r, 0.0);  // branch-free half-wave rectification
+      ref_total += r;
+      cur[k] = p;
+    }
+    num[t] = up;
+    den[t] = t >= lag + kRefFrames ? ref_total : -1.0;  // -1: reference not yet full
+    // Slide the reference: frame t + 1 - lag enters, frame t + 1 - lag - kRefFrames leaves.
+    if (t + 1 >= lag) {
+      const double* in_f = spectra.data() + ((t + 1 - lag) % ring) * bins;
+      for (std::size_t k = 0; k < bins; ++k) ref[k] += in_f[k];
+      if (t + 1 >= lag + kRefFrames) {
+        const double* out_f = spectra.data() + ((t + 1 - lag - kRefFrames) % ring) * bins;
+        for (std::size_t k = 0; k < bins; ++k) ref[k] -= out_f[k];
+      }
+    }
+  }
+  // Floor of the denominator: the median reference power (the background), so silence and
+  // digital zeros do not turn tiny increases into large ratios.
+  std::vector<double> valid_den;
+  for (double v : den)
+    if (v >= 0.0) valid_den.push_back(v);
+  double floor_power = Median(valid_den);
+  if (!(floor_power > 0.0)) {
+    double mx = 0.0;
+    for (double v : valid_den) mx = std::max(mx, v);
+    floor_power = std::max(mx * 1e-6, 1e-30);
+  }
+  for (double& v : den)
+    if (v < 0.0) v = floor_power;
+  // A click stays above its reference for the ~lag frames that contain it, a noise peak for
+  // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
+  std::vector<double> raw_db(frames);
+  for (std::size_t t = 0; t < frames; ++t)
+    raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
+  res.novelty_db.assign(frames, 0.0);
+  for (std::size_t t = 1; t + 1 < frames; ++t)
+    res.novelty_db[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+
+  // 2. Adaptive threshold: running median + k * MAD, evaluated on blocks and interpolated.
+  const std::size_t win = std::max<std::size_t>(
+      16, static_cast<std::size_t>(options_.median_window_s * rate_hz_ / static_cast<double>(hop)));
+  const std::size_t blk = std::max<std::size_t>(1, win / 8);
+  const std::size_t nblk = (frames + blk - 1) / blk;
+  std::vector<double> blk_thr(nblk);
+  std::vector<double> buf;
+  for (std::size_t b = 0; b < nblk; ++b) {
+    const std::size_t c = b * blk + blk / 2;
+    const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
+    const std::size_t hi = std::min(frames, lo + win);
+    // Every fourth frame of the window (~225 values at the default hop): the median and MAD of
+    // the background are as good and a quarter of the work.
+    buf.clear();
+    for (std::size_t q = lo; q < hi; q += 4) buf.push_back(res.novelty_db[q]);
+    const double med = Median(buf);
+    for (double& v : buf) v = std::fabs(v - med);
+    const double mad = 1.4826 * Median(buf);
+    blk_thr[b] = med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
+  }
+  res.threshold_db.resize(frames);
+  for (std::size_t t = 0; t < frames; ++t) {
+    const double pos =
+        (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
+    const double cl = std::clamp(pos, 0.0, static_cast<double>(nblk - 1));
+    const std::size_t b0 = static_cast<std::size_t>(cl);
+    const std::size_t b1 = std::min(nblk - 1, b0 + 1);
+    const double fr = cl - static_cast<double>(b0);
+    res.threshold_db[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+  }
+
+  // 3. Peak picking: local maxima above threshold; within min_gap keep the stronger.
+  std::vector<std::size_t> peaks;
+  const std::size_t gap =
+      static_cast<std::size_t>(options_.min_gap_s * rate_hz_ / static_cast<double>(hop));
+  const auto& nov = res.novelty_db;
+  for (std::size_t t = 1; t + 1 < frames; ++t) {
+    if (nov[t] <= res.threshold_db[t] || nov[t] < nov[t - 1] || nov[t] <= nov[t + 1]) continue;
+    if (!peaks.empty() && t - peaks.back() <= gap) {
+      if (nov[t] > nov[peaks.back()]) peaks.back() = t;
+      continue;
+    }
+    peaks.push_back(t);
+  }
+
+  // 4. Refinement and per-impact measures. `centre`: coarse onset sample.
+  const std::size_t pre =
+      std::max<std::size_t>(nw, static_cast<std::size_t>(options_.aic_pre_s * rate_hz_));
+  const std::size_t post =
+      std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
+  const double noise_var = std::max(res.noise_rms * res.noise_rms, 1e-30);
+  // Timing floor: the AIC pick keeps a bias of a fraction of a sample that depends on where the
+  // onset falls between samples (measured on rendered clicks, tests/onsets_test.cpp).
+  const double floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
+  // tight: the coarse onset is already good to a few samples (template match).
+  auto make_impact = [&](std::size_t centre, bool tight) {
+    double onset = static_cast<double>(centre);
+    double sigma = static_cast<double>(hop) / std::sqrt(12.0);
+    {
+      const std::size_t pr = tight ? std::max<std::size_t>(16, pre / 3) : pre;
+      const std::size_t po = tight ? std::max<std::size_t>(8, post / 2) : post;
+      const std::size_t b = centre > pr ? centre - pr : 0;
+      const AicPick p = PickAic(w, b, std::min(n, centre + po), options_.aic_upsample);
+      if (p.valid) {
+        onset = p.index;
+        sigma = p.sigma;
+      }
+    }
+    Impact imp;
+    imp.time_s = onset / rate_hz_;
+    imp.sigma_s = std::hypot(sigma / rate_hz_, floor_s);
+    const std::size_t i0 =
+        std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
+    const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
+    double amp = 0.0;
+    for (std::size_t i = i0; i < pk_end; ++i)
+      amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
+    imp.amplitude = amp;
+    // SNR: whitened power just after the onset over the power in the 10 ms before it.
+    const std::size_t len_post =
+        std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
+    double e_post = 0.0;
+    std::size_t c_post = 0;
+    for (std::size_t i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
+      e_post += static_cast<double>(w[i]) * w[i];
+    const std::size_t pre_end = i0 > 2 ? i0 - 2 : 0;
+    const std::size_t pre_len = static_cast<std::size_t>(0.01 * rate_hz_);
+    const std::size_t pre_begin = pre_end > pre_len ? pre_end - pre_len : 0;
+    double e_pre = 0.0;
+    for (std::size_t i = pre_begin; i < pre_end; ++i) e_pre += static_cast<double>(w[i]) * w[i];
+    const double p_post = c_post ? e_post / static_cast<double>(c_post) : 0.0;
+    const double p_pre =
+        pre_end > pre_begin ? e_pre / static_cast<double>(pre_end - pre_begin) : noise_var;
+    imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * noise_var) + 1e-30));
+    return imp;
+  };
+  std::vector<long> window_lo, window_hi;  // onset samples the AIC window of each onset spans
+  for (std::size_t t : peaks) {
+    // The click is most likely in the newest half of the window at the flux peak.
+    const std::size_t centre = t * hop + nw / 2 + nw / 4;
+    res.onsets.push_back(make_impact(centre, false));
+    window_lo.push_back(static_cast<long>(centre) - static_cast<long>(pre));
+    window_hi.push_back(static_cast<long>(centre + post));
+  }
+
+  // 5. Template pass: the impacts of one ball on one plate look alike. The whitened waveform of
+  // the strongest onset is the template; its normalised cross-correlation (NCC) with the whole
+  // whitened signal (FFT overlap-save) finds impacts the flux missed (late impacts on top of
+  // ringing) and scores every onset (Impact::score).
+  if (res.onsets.empty()) return res;
+  std::size_t strongest = 0;
+  for (std::size_t i = 1; i < res.onsets.size(); ++i)
+    if (res.onsets[i].snr_db > res.onsets[strongest].snr_db) strongest = i;
+  const std::size_t lead = static_cast<std::size_t>(0.1e-3 * rate_hz_) + 1;
+  const std::size_t tl = static_cast<std::size_t>(template_len_);
+  const long ref_start =
+      std::lround(res.onsets[strongest].time_s * rate_hz_) - static_cast<long>(lead);
+  if (ref_start < 0 || static_cast<std::size_t>(ref_start) + tl > n) return res;
+  std::vector<double> h(tl);
+  double hh = 0.0;
+  for (std::size_t j = 0; j < tl; ++j) {
+    h[j] = w[static_cast<std::size_t>(ref_start) + j];
+    hh += h[j] * h[j];
+  }
+  if (!(hh > 0.0)) return res;
+  res.template_wave = h;
+  res.template_start = ref_start;
+  res.template_onset_s = res.onsets[strongest].time_s;
+  const std::vector<float> xc = corr_->Correlate(w, h);
+  // Energy of w under the template at each start: ww[i] = sum of w^2 over [i, min(n, i + tl)),
+  // a running sum (float storage: half the memory of double prefix sums, which dominated the
+  // allocation cost), recomputed exactly every 8192 samples so rounding cannot accumulate.
+  std::vector<float> ww(n);
+  {
+    for (std::size_t b = 0; b < n; b += 8192) {
+      double run = 0.0;
+      for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
+      ww[b] = static_cast<float>(run);
+      const std::size_t e = std::min(n, b + 8192);
+      const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
+      std::size_t i = b + 1;
+      for (; i < e_in; ++i) {
+        const double in_v = w[i + tl - 1], out_v = w[i - 1];
+        run += in_v * in_v - out_v * out_v;
+        ww[i] = static_cast<float>(std::max(run, 0.0));
+      }
+      for (; i < e; ++i) {
+        const double out_v = w[i - 1];
+        run -= out_v * out_v;
+        ww[i] = static_cast<float>(std::max(run, 0.0));
+      }
+    }
+  }
+  auto ncc = [&](std::size_t i) {
+    const double e = ww[i];
+    return e > 0.0 ? static_cast<double>(xc[i]) / std::sqrt(hh * e) : 0.0;
+  };
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  for (Impact& im : res.onsets) {
+    const long s0 = std::lround(im.time_s * rate_hz_) - static_cast<long>(lead);
+    double best = 0.0;
+    for (long l = std::max(0L, s0 - maxlag); l <= s0 + maxlag && l < static_cast<long>(n); ++l)
+      best = std::max(best, ncc(static_cast<std::size_t>(l)));
+    im.score = std::clamp(best, 0.0, 1.0);
+  }
+  // Template time: the NCC peak (parabolic interpolation) gives the onset relative to the
+  // template's own onset. t_guess: the AIC pick; [lo, hi]: template starts the AIC window
+  // allowed (the pick can land anywhere in it when the onset is weak).
+  const double t_ref = res.onsets[strongest].time_s;
+  auto template_time = [&](double t_guess, long lo, long hi, double* c_out) {
+    const long s0 = std::lround(t_guess * rate_hz_) - static_cast<long>(lead);
+    // Best NCC within +-maxlag of the guess; a farther one (in the AIC window or 2 maxlag
+    // around the guess) only if it is clearly better (ball ringing and echoes also match).
+    long best_l = -1, far_l = -1;
+    double best_c = -2.0, far_c = -2.0;
+    const long search = 2 * maxlag;
+    const long from = std::max(1L, std::min(lo, s0 - search));
+    const long to = std::min(static_cast<long>(n) - 2, std::max(hi, s0 + search));
+    for (long l = from; l <= to; ++l) {
+      const double c = ncc(static_cast<std::size_t>(l));
+      const bool near = std::labs(l - s0) <= maxlag;
+      if (near && c > best_c) {
+        best_c = c;
+        best_l = l;
+      }
+      if (!near && c > far_c) {
+        far_c = c;
+        far_l = l;
+      }
+    }
+    if (far_c > best_c + 0.15) {
+      best_c = far_c;
+      best_l = far_l;
+    }
+    *c_out = best_c;
+    if (best_l < 1) return t_guess;
+    const double cm = ncc(static_cast<std::size_t>(best_l - 1));
+    const double cp = ncc(static_cast<std::size_t>(best_l + 1));
+    const double curv = cm - 2.0 * best_c + cp;
+    const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
+    return t_ref + (static_cast<double>(best_l - ref_start) + d) / rate_hz_;
+  };
+  // Template timing: the impacts of one ball on one plate have the same waveform up to level,
+  // so the cross-correlation lag to the template times them relative to the template's own onset
+  // far more consistently than an AIC pick on each: the AIC moves with the level (it finds the
+  // first sample that stands out of the background, later for a quiet impact) and jumps to a
+  // later rise when the onset is weak or slow. Measured on the corpus (steel on copper, ping-pong
+  // on wood): AIC picks scatter by 5-30 us around the truth and a few jump by 30-2000 us; NCC
+  // lags scatter by 1-5 us (tools/bench_detect). Every impact with a clear match
+  // (NCC >= template_timing_ncc) is therefore timed by the template; the AIC pick of the template
+  // impact anchors them all (a constant offset, which cancels in intervals).
+  auto check_with_template = [&](Impact& im, long lo, long hi) {
+    double c = 0.0;
+    const double tt = template_time(im.time_s, lo, hi, &c);
+    if (c < options_.template_timing_ncc) return;
+    im.time_s = tt;
+    im.score = std::max(im.score, std::min(c, 1.0));
+    // NCC peak precision ~ sqrt(1 - c^2) / c samples (scaled), plus the floor.
+    const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - c * c)) / c;
+    im.sigma_s = std::hypot(sig_samples / rate_hz_, floor_s);
+  };
+  for (std::size_t i = 0; i < res.onsets.size(); ++i)
+    check_with_template(res.onsets[i], window_lo[i] - static_cast<long>(lead),
+                        window_hi[i] - static_cast<long>(lead));
+
+  if (options_.template_threshold < 1.0) {
+    std::vector<double> known;
+    for (const Impact& im : res.onsets) known.push_back(im.time_s);
+    std::sort(known.begin(), known.end());
+    const std::size_t gap_s = static_cast<std::size_t>(options_.min_gap_s * rate_hz_);
+    // The NCC of a template of L samples with white noise has a standard deviation of about
+    // 1/sqrt(L): ask for 4 of those at least, so short templates (low rates) stay selective.
+    const double ncc_min =
+        std::max(options_.template_threshold, 4.0 / std::sqrt(static_cast<double>(tl)));
+    std::vector<std::pair<std::size_t, double>> found;  // (start sample, ncc)
+    const double k2 = ncc_min * ncc_min * hh;
+    for (std::size_t i = 1; i + tl < n; ++i) {
+      // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt, one branch).
+      const double c_i = xc[i];
+      if (!(c_i > 0.0) | (c_i * c_i < k2 * static_cast<double>(ww[i]))) continue;
+      const double c = ncc(i);
+      if (!found.empty() && i - found.back().first <= gap_s) {
+        if (c > found.back().second) found.back() = {i, c};
+        continue;
+      }
+      found.push_back({i, c});
+    }
+    const std::size_t before = res.onsets.size();
+    for (const auto& [i, c] : found) {
+      const double t = static_cast<double>(i + lead) / rate_hz_;
+      auto it = std::lower_bound(known.begin(), known.end(), t);
+      const bool near_known = (it != known.end() && *it - t < options_.min_gap_s) ||
+                              (it != known.begin() && t - *(it - 1) < options_.min_gap_s);
+      if (near_known) continue;
+      Impact imp = make_impact(i + lead, true);
+      imp.score = std::clamp(c, 0.0, 1.0);
+      const long s0 = static_cast<long>(i);
+      check_with_template(imp, s0, s0);
+      res.onsets.push_back(imp);
+    }
+    if (res.onsets.size() != before)
+      std::sort(res.onsets.begin(), res.onsets.end(),
+                [](const Impact& a, const Impact& b) { return a.time_s < b.time_s; });
+  }
+  return res;
+}
+
+bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty) {
+  const std::vector<double>& h = r.template_wave;
+  const std::vector<float>& w = r.whitened;
+  if (h.empty() || !(r.rate_hz > 0.0) || w.size() != x.size()) return false;
+  const long n = static_cast<long>(w.size()), tl = static_cast<long>(h.size());
+  double hh = 0.0;
+  for (double v : h) hh += v * v;
+  if (!(hh > 0.0)) return false;
+  // Template start l <-> onset t_ref + (l - template_start) / rate.
+  auto start_of = [&](double t) {
+    return r.template_start + std::lround((t - r.template_onset_s) * r.rate_hz);
+  };
+  const long lo = std::max(1L, start_of(t_center_s - half_window_s));
+  const long hi = std::min(n - tl - 2, start_of(t_center_s + half_window_s));
+  if (hi < lo) return false;
+  auto ncc = [&](long l) {
+    double xy = 0.0, yy = 0.0;
+    for (long j = 0; j < tl; ++j) {
+      const double y = w[static_cast<std::size_t>(l + j)];
+      xy += h[static_cast<std::size_t>(j)] * y;
+      yy += y * y;
+    }
+    return yy > 0.0 ? xy / std::sqrt(hh * yy) : 0.0;
+  };
+  long best_l = -1;
+  double best_c = -2.0, best_rank = -1e300;
+  const long l_centre = start_of(t_center_s);
+  const double inv_half = half_window_s > 0.0 ? 1.0 / (half_window_s * r.rate_hz) : 0.0;
+  for (long l = lo; l <= hi; ++l) {
+    const double c = ncc(l);
+    const double u = static_cast<double>(l - l_centre) * inv_half;
+    const double rank = c - edge_penalty * u * u;
+    if (rank > best_rank) {
+      best_rank = rank;
+      best_c = c;
+      best_l = l;
+    }
+  }
+  if (best_l < 1 || best_c < min_ncc) return false;
+  const double cm = ncc(best_l - 1), cp = ncc(best_l + 1);
+  const double curv = cm - 2.0 * best_c + cp;
+  const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
+  Impact imp;
+  imp.time_s =
+      r.template_onset_s + (static_cast<double>(best_l - r.template_start) + d) / r.rate_hz;
+  const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - best_c * best_c)) / best_c;
+  imp.sigma_s = std::hypot(sig_samples / r.rate_hz, r.sigma_floor_s);
+  imp.score = std::clamp(best_c, 0.0, 1.0);
+  const long i0 = std::clamp(std::lround(imp.time_s * r.rate_hz), 0L, n - 1);
+  const long len_post = std::max(8L, static_cast<long>(0.0005 * r.rate_hz));
+  const long len_pre = static_cast<long>(0.01 * r.rate_hz);
+  double amp = 0.0, e_post = 0.0, e_pre = 0.0;
+  long c_post = 0, c_pre = 0;
+  for (long i = i0; i < std::min(n, i0 + static_cast<long>(0.003 * r.rate_hz) + 1); ++i)
+    amp = std::max(amp, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
+  for (long i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
+    e_post += static_cast<double>(w[static_cast<std::size_t>(i)]) * w[static_cast<std::size_t>(i)];
+  for (long i = std::max(0L, i0 - 2 - len_pre); i < i0 - 2; ++i, ++c_pre)
+    e_pre += static_cast<double>(w[static_cast<std::size_t>(i)]) * w[static_cast<std::size_t>(i)];
+  imp.amplitude = amp;
+  const double floor_var = std::max(r.noise_rms * r.noise_rms, 1e-30);
+  const double p_post = c_post ? e_post / static_cast<double>(c_post) : 0.0;
+  const double p_pre = c_pre ? e_pre / static_cast<double>(c_pre) : floor_var;
+  imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * floor_var) + 1e-30));
+  *out = imp;
+  return true;
+}
+
+}  // namespace bouncecal

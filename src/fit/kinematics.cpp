@@ -1,0 +1,259 @@
+// Impact times -> per-bounce speeds, restitution and energy loss (kinematics.hpp).
+//
+// Notation: onsets t_0 < t_1 < ... (sigma s_k each, independent), interval I_k = t_{k+1} - t_k,
+// contact duration tau_k of impact k (0 unless the scene's contact_duration effect is on),
+// flight time T_k = I_k - tau_k (the ball leaves the plate tau_k after the onset and touches it
+// again at the next onset). With the scene's flight model F (flight.hpp, PHYSICS.md §2):
+//   v_out,k   = F^-1(T_k)                       (exact inversion of the flight time)
+//   v_in,k+1  = A(v_out,k)                      (arrival speed after that flight)
+//   e_k = v_out,k / v_in,k,   eta_k = 1 - e_k^2 (seed 002 eqs. 11-12)
+// Without drag this is exactly e_k = I_k / I_{k-1} (seed 002 eq. 11). v_in,0 comes from the drop
+// (fall from height h, or the given impact speed) when the scene has it.
+//
+// Uncertainty (first order, onsets independent): with a_k = dv_out,k/dT_k = 1/F'(v_out,k) and
+// b_k = dA/dv0 at v_out,k,
+//   de_k/dt_{k+1} =  a_k / v_in,k
+//   de_k/dt_k     = -a_k / v_in,k - e_k b_{k-1} a_{k-1} / v_in,k
+//   de_k/dt_{k-1} =  e_k b_{k-1} a_{k-1} / v_in,k
+// so e_k and e_{k+1} share t_k and t_{k+1} and are correlated (reported per bounce), and the
+// sigma of the mean eta of three bounces is computed from the gradient of the mean with respect
+// to every onset, not from the individual sigmas. The weak dependence of the Hertz contact time
+// on the impact speed (tau ~ v^-1/5) is left out of the Jacobian.
+#include "bouncecal/fit/kinematics.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <set>
+#include <string>
+
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/flight.hpp"
+
+namespace bouncecal {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::string Fmt(const char* format, double a, double b = 0.0) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, format, a, b);
+  return buf;
+}
+
+}  // namespace
+
+bool AnalysisOptions::IsValid(std::string* error) const {
+  if (!std::isfinite(contact_time_s) || contact_time_s < 0.0) {
+    if (error != nullptr) {
+      *error = "contact_time_s: must be finite and >= 0 (0 = Hertz estimate) (got " +
+               Fmt("%g", contact_time_s) + ")";
+    }
+    return false;
+  }
+  return true;
+}
+
+double HertzContactTime(const Scene& scene, double impact_speed_m_s) {
+  const double e1 = scene.ball.ResolvedYoungsModulusPa();
+  const double nu1 = scene.ball.ResolvedPoissonRatio();
+  const double e2 = scene.surface.ResolvedYoungsModulusPa();
+  const double nu2 = scene.surface.ResolvedPoissonRatio();
+  if (!std::isfinite(e1) || !std::isfinite(nu1)) {
+    throw Error(ErrorCode::kBadScene,
+                (scene.source.empty() ? "" : scene.source + ": ") +
+                    "ball.youngs_modulus_pa/poisson_ratio: unknown for material \"" +
+                    scene.ball.material + "\" (needed for the Hertz contact duration)");
+  }
+  if (!std::isfinite(e2) || !std::isfinite(nu2)) {
+    throw Error(ErrorCode::kBadScene,
+                (scene.source.empty() ? "" : scene.source + ": ") +
+                    "surface.youngs_modulus_pa/poisson_ratio: unknown for material \"" +
+                    scene.surface.material + "\" (needed for the Hertz contact duration)");
+  }
+  // Effective modulus and mass (Johnson, Contact Mechanics, 1985, §4.2 and §11.4).
+  const double e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
+  const double m = scene.ball.Mass();
+  double m_star = m;
+  if (scene.effects.surface_compliance && scene.surface.mass_kg > 0.0) {
+    m_star = m * scene.surface.mass_kg / (m + scene.surface.mass_kg);
+  }
+  const double r_star = scene.ball.Radius();
+  const double v = std::max(impact_speed_m_s, 1e-12);
+  // tau = 2.94 delta_max / v = 2.87 (m*^2 / (R* E*^2 v))^(1/5)  (PHYSICS.md §2; Johnson,
+  // Contact Mechanics, 1985, §11.4).
+  return 2.87 * std::pow(m_star * m_star / (r_star * e_star * e_star * v), 0.2);
+}
+
+Analysis AnalyzeBounces(const Sequence& sequence, const Scene& scene,
+                        const AnalysisOptions& options) {
+  std::string error;
+  if (!scene.IsValid(&error)) throw Error(ErrorCode::kBadScene, error);
+  if (!options.IsValid(&error)) throw Error(ErrorCode::kBadParameter, "analysis: " + error);
+  const std::vector<Impact>& imp = sequence.impacts;
+  const size_t n = imp.size();
+  if (n < 2) {
+    throw Error(ErrorCode::kNoBounces, "the sequence has " + std::to_string(n) +
+                                           " impact(s); at least 2 are needed for kinematics");
+  }
+  for (size_t k = 0; k < n; ++k) {
+    if (!std::isfinite(imp[k].time_s) || (k > 0 && !(imp[k].time_s > imp[k - 1].time_s))) {
+      throw Error(ErrorCode::kBadParameter, "impact " + std::to_string(k) +
+                                                ": times must be finite and increasing (got " +
+                                                Fmt("%.9g", imp[k].time_s) + ")");
+    }
+  }
+
+  const FlightModel flight = FlightModel::FromScene(scene);
+  Analysis out;
+  out.effective_gravity_m_s2 = flight.gravity_m_s2();
+  out.terminal_speed_m_s = flight.terminal_speed_m_s();
+  const std::set<int> missed(sequence.missed_after.begin(), sequence.missed_after.end());
+
+  std::vector<double> t(n), s(n), v_in(n, kNaN), v_in_sigma(n, kNaN), v_out(n, kNaN),
+      v_out_sigma(n, kNaN), a(n, kNaN), b(n, kNaN), tau(n, 0.0);
+  for (size_t k = 0; k < n; ++k) {
+    t[k] = imp[k].time_s;
+    s[k] = std::isfinite(imp[k].sigma_s) && imp[k].sigma_s > 0.0 ? imp[k].sigma_s : 0.0;
+  }
+  if (!options.use_drop) {
+    // First arrival speed unknown.
+  } else if (scene.drop.height_m) {
+    v_in[0] = flight.FallArrivalSpeed(*scene.drop.height_m);
+    v_in_sigma[0] = 0.0;  // the drop height is taken as exact
+  } else if (scene.drop.impact_speed_m_s) {
+    v_in[0] = *scene.drop.impact_speed_m_s;
+    v_in_sigma[0] = 0.0;
+  }
+
+  const bool contact = scene.effects.contact_duration;
+  auto contact_time = [&](double v) {
+    if (!contact) return 0.0;
+    if (options.contact_time_s > 0.0) return options.contact_time_s;
+    return HertzContactTime(scene, v);
+  };
+
+  for (size_t k = 0; k + 1 < n; ++k) {
+    const double interval = t[k + 1] - t[k];
+    if (contact) {
+      if (std::isfinite(v_in[k])) {
+        tau[k] = contact_time(v_in[k]);
+      } else {
+        // Unknown arrival speed (first heard impact): tau depends on v only as v^-1/5, so a
+        // few fixed-point steps with the rebound speed as the proxy converge.
+        double v = 0.5 * flight.gravity_m_s2() * interval;
+        for (int it = 0; it < 4; ++it) {
+          tau[k] = contact_time(v);
+          if (!(interval - tau[k] > 0.0)) break;
+          v = flight.LaunchSpeedForFlightTime(interval - tau[k]);
+        }
+      }
+    }
+    if (missed.count(static_cast<int>(k))) {
+      out.warnings.push_back("interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
+                             ": an impact seems missing; speeds and e around it are not given");
+      continue;
+    }
+    const double flight_time = interval - tau[k];
+    if (!(flight_time > 0.0)) {
+      out.warnings.push_back(
+          "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
+          Fmt(": %.3g s is not longer than the contact duration %.3g s", interval, tau[k]));
+      continue;
+    }
+    v_out[k] = flight.LaunchSpeedForFlightTime(flight_time);
+    a[k] = 1.0 / flight.FlightTimeDerivative(v_out[k]);
+    b[k] = flight.ArrivalSpeedDerivative(v_out[k]);
+    v_out_sigma[k] = a[k] * std::hypot(s[k], s[k + 1]);
+    v_in[k + 1] = flight.ArrivalSpeed(v_out[k]);
+    v_in_sigma[k + 1] = b[k] * a[k] * std::hypot(s[k], s[k + 1]);
+  }
+  if (contact && std::isfinite(v_in[n - 1])) tau[n - 1] = contact_time(v_in[n - 1]);
+
+  out.bounces.resize(n);
+  for (size_t k = 0; k < n; ++k) {
+    Bounce& bo = out.bounces[k];
+    bo.index = static_cast<int>(k);
+    bo.time_s = t[k];
+    bo.time_sigma_s = s[k];
+    bo.interval_s = k + 1 < n ? t[k + 1] - t[k] : kNaN;
+    bo.v_in_m_s = v_in[k];
+    bo.v_in_sigma_m_s = v_in_sigma[k];
+    bo.v_out_m_s = v_out[k];
+    bo.v_out_sigma_m_s = v_out_sigma[k];
+    bo.contact_s = tau[k];
+    bo.e = bo.e_sigma = bo.eta = bo.eta_sigma = kNaN;
+    bo.de_dt_prev = bo.de_dt_this = bo.de_dt_next = kNaN;
+    bo.e_next_correlation = kNaN;
+    if (!(std::isfinite(v_out[k]) && std::isfinite(v_in[k]) && v_in[k] > 0.0)) continue;
+    bo.e = v_out[k] / v_in[k];
+    bo.de_dt_next = a[k] / v_in[k];
+    if (k == 0) {
+      // v_in,0 from the scene: no dependence on any onset.
+      bo.de_dt_prev = 0.0;
+      bo.de_dt_this = -a[k] / v_in[k];
+    } else {
+      const double d_in = b[k - 1] * a[k - 1] / v_in[k];  // (dv_in,k/dt_k) / v_in,k
+      bo.de_dt_prev = bo.e * d_in;
+      bo.de_dt_this = -a[k] / v_in[k] - bo.e * d_in;
+    }
+    const double sp = k > 0 ? s[k - 1] : 0.0;
+    bo.e_sigma = std::sqrt(bo.de_dt_prev * bo.de_dt_prev * sp * sp +
+                           bo.de_dt_this * bo.de_dt_this * s[k] * s[k] +
+                           bo.de_dt_next * bo.de_dt_next * s[k + 1] * s[k + 1]);
+    bo.eta = 1.0 - bo.e * bo.e;
+    bo.eta_sigma = 2.0 * std::abs(bo.e) * bo.e_sigma;
+    if (bo.e > 1.0) {
+      out.warnings.push_back(
+          "impact " + std::to_string(k) + Fmt(": e = %.5f > 1 (+- %.2g): ", bo.e, bo.e_sigma) +
+          (k == 0 ? "the drop height/impact speed is too low for the first interval, or the "
+                    "first detected impact is not the drop's first"
+                  : "timing noise, a wrong scene (drag) or a mis-tracked impact"));
+    }
+  }
+  // Correlation of successive e's: shared onsets t_k (e_k's "this", e_{k+1}'s "prev") and
+  // t_{k+1} (e_k's "next", e_{k+1}'s "this").
+  for (size_t k = 0; k + 1 < n; ++k) {
+    Bounce& p = out.bounces[k];
+    const Bounce& q = out.bounces[k + 1];
+    if (!std::isfinite(p.e) || !std::isfinite(q.e)) continue;
+    const double cov = p.de_dt_this * q.de_dt_prev * s[k] * s[k] +
+                       p.de_dt_next * q.de_dt_this * s[k + 1] * s[k + 1];
+    const double denom = p.e_sigma * q.e_sigma;
+    if (denom > 0.0) p.e_next_correlation = cov / denom;
+  }
+
+  if (std::isfinite(out.bounces[0].e)) {
+    out.first_e = out.bounces[0].e;
+    out.first_e_sigma = out.bounces[0].e_sigma;
+  }
+
+  // Mean eta of the first three bounces with a known e (seed 002 reports 0.58 over 5 drops).
+  // Its sigma uses the gradient of the mean with respect to every onset (e's are correlated).
+  std::map<size_t, double> grad;  // onset index -> d mean_eta / d t
+  double sum = 0.0;
+  for (size_t k = 0; k < n && out.mean_eta_indices.size() < 3; ++k) {
+    const Bounce& bo = out.bounces[k];
+    if (!std::isfinite(bo.e)) continue;
+    out.mean_eta_indices.push_back(static_cast<int>(k));
+    sum += bo.eta;
+    const double deta_de = -2.0 * bo.e / 3.0;
+    if (k > 0) grad[k - 1] += deta_de * bo.de_dt_prev;
+    grad[k] += deta_de * bo.de_dt_this;
+    grad[k + 1] += deta_de * bo.de_dt_next;
+  }
+  if (out.mean_eta_indices.size() == 3) {
+    out.mean_eta_first3 = sum / 3.0;
+    double var = 0.0;
+    for (const auto& [j, g] : grad) var += g * g * s[j] * s[j];
+    out.mean_eta_first3_sigma = std::sqrt(var);
+  } else {
+    out.warnings.push_back(
+        "fewer than three bounces with a known e: no mean eta of the first "
+        "three");
+  }
+  return out;
+}
+
+}  // namespace bouncecal

@@ -1,0 +1,181 @@
+#include "bouncecal/io/param_file.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "bouncecal/core/error.hpp"
+
+namespace bouncecal {
+namespace {
+
+using nlohmann::json;
+
+// NaN/Inf are not JSON numbers: absent values are null.
+json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json Opt(const std::optional<double>& v) { return v ? Num(*v) : json(nullptr); }
+
+}  // namespace
+
+json SceneJson(const Scene& s) {
+  json j;
+  j["ball"] = {{"diameter_m", s.ball.diameter_m},
+               {"mass_kg", Num(s.ball.Mass())},
+               {"density_kg_m3", Num(s.ball.Density())},
+               {"material", s.ball.material},
+               {"youngs_modulus_pa", Opt(s.ball.youngs_modulus_pa)},
+               {"poisson_ratio", Opt(s.ball.poisson_ratio)}};
+  j["surface"] = {{"kind", s.surface.kind == Surface::Kind::kRigid ? "rigid" : "spring_mass"},
+                  {"material", s.surface.material},
+                  {"youngs_modulus_pa", Opt(s.surface.youngs_modulus_pa)},
+                  {"poisson_ratio", Opt(s.surface.poisson_ratio)}};
+  if (s.surface.kind == Surface::Kind::kSpringMass) {
+    j["surface"]["mass_kg"] = s.surface.mass_kg;
+    j["surface"]["stiffness_n_m"] = s.surface.stiffness_n_m;
+    j["surface"]["damping_n_s_m"] = s.surface.damping_n_s_m;
+  }
+  j["environment"] = {{"g_m_s2", s.environment.g_m_s2},
+                      {"air_density_kg_m3", s.environment.air_density_kg_m3},
+                      {"air_viscosity_pa_s", s.environment.air_viscosity_pa_s},
+                      {"drag_coefficient", s.environment.drag_coefficient}};
+  j["drop"] = {{"height_m", Opt(s.drop.height_m)},
+               {"impact_speed_m_s", Opt(s.drop.impact_speed_m_s)}};
+  j["effects"] = {{"drag", DragModelName(s.effects.drag)},
+                  {"buoyancy", s.effects.buoyancy},
+                  {"contact_duration", s.effects.contact_duration},
+                  {"surface_compliance", s.effects.surface_compliance}};
+  json params = json::object();
+  for (const auto& [k, v] : s.law.parameters) params[k] = Num(v);
+  j["law"] = {{"name", s.law.name}, {"parameters", params}};
+  if (!s.law.expression.empty()) j["law"]["expression"] = s.law.expression;
+  return j;
+}
+
+json OptionsJson(const CalibrationOptions& o) {
+  return {{"strategy", FitStrategyName(o.strategy)},
+          {"free_parameters", o.free_parameters},
+          {"fixed_parameters", o.fixed_parameters},
+          {"derivatives", DerivativeModeName(o.derivatives)},
+          {"rel_tolerance", o.rel_tolerance},
+          {"loss", RobustLossName(o.loss)},
+          {"loss_scale_sigma", o.loss_scale_sigma},
+          {"max_iterations", o.max_iterations},
+          {"use_drop", o.use_drop},
+          {"seed_from_inverse_map", o.seed_from_inverse_map},
+          {"e_of_v_points", o.e_of_v_points},
+          {"undetermined_relative_sigma", o.undetermined_relative_sigma},
+          {"comparison_rel_tolerance", o.comparison_rel_tolerance},
+          {"comparison_max_iterations", o.comparison_max_iterations}};
+}
+
+json ParamFileJson(const Calibration& c, const Provenance& prov, const json& options) {
+  const bool traj = c.strategy == FitStrategy::kTrajectory;
+  const std::string rms_key = traj ? "rms_residual_s" : "rms_residual_e";
+  json j;
+  j["schema"] = kParamFileSchema;
+  j["law"] = c.law;
+  j["formula"] = c.formula;
+  j["source"] = c.source;
+  json params = json::object();
+  for (const auto& p : c.parameters) {
+    params[p.name] = {
+        {"value", Num(p.value)},  {"sigma", Num(p.sigma)},      {"unit", p.unit},
+        {"fixed", p.fixed},       {"determined", p.determined}, {"damping", p.damping},
+        {"at_bound", p.at_bound}, {"lower", Num(p.lower)},      {"upper", Num(p.upper)}};
+  }
+  j["parameters"] = params;
+  json ev = json::array();
+  for (const auto& pt : c.e_of_v) {
+    ev.push_back({{"v_m_s", Num(pt.v_m_s)}, {"e", Num(pt.e)}, {"sigma", Num(pt.sigma)}});
+  }
+  j["e_of_v"] = ev;
+  j["fit"] = {{"strategy", FitStrategyName(c.strategy)},
+              {"derivatives", DerivativeModeName(c.derivatives)},
+              {"analytic_jacobian", c.analytic_jacobian},
+              {"outcome", FitOutcomeName(c.outcome)},
+              {"message", c.message},
+              {rms_key, Num(c.rms_residual)},
+              {"chi2", Num(c.chi2)},
+              {"chi2_dof", Num(c.chi2_dof)},
+              {"dof", c.dof},
+              {"num_residuals", c.num_residuals},
+              {"num_free", c.num_free},
+              {"aic", Num(c.aic)},
+              {"bic", Num(c.bic)},
+              {"iterations", c.iterations},
+              {"simulations", c.simulations},
+              {"v_min_m_s", Num(c.v_min_m_s)},
+              {"v_max_m_s", Num(c.v_max_m_s)},
+              {"determined", c.Determined()},
+              {"undetermined", c.Undetermined()}};
+  json recs = json::array();
+  for (const auto& r : c.recordings) {
+    json jr = {{"path", r.name}, {"impacts", r.impacts}, {rms_key, Num(r.rms_residual)}};
+    if (traj) {
+      jr["simulated_impacts"] = r.simulated_impacts;
+      jr["impact_speed_m_s"] = Num(r.impact_speed_m_s);
+      jr["impact_speed_sigma_m_s"] = Num(r.impact_speed_sigma_m_s);
+      jr["impact_speed_fixed"] = r.impact_speed_fixed;
+      jr["time_origin_s"] = Num(r.time_origin_s);
+      jr["time_origin_sigma_s"] = Num(r.time_origin_sigma_s);
+    }
+    recs.push_back(jr);
+  }
+  j["recordings"] = recs;
+  j["scene"] = SceneJson(c.scene);
+  try {
+    j["scene_toml"] = SceneToToml(c.scene);
+  } catch (const Error&) {
+    j["scene_toml"] = nullptr;
+  }
+  json inputs = json::array();
+  for (const auto& in : prov.inputs) inputs.push_back({{"path", in.path}, {"sha256", in.sha256}});
+  j["provenance"] = {{"inputs", inputs},
+                     {"bouncecal_version", prov.bouncecal_version},
+                     {"options", options},
+                     {"date_utc", prov.date_utc}};
+  return j;
+}
+
+void WriteParamFile(const std::string& path, const json& doc, const WriteOptions& options) {
+  WriteFileAtomically(path, doc.dump(2) + "\n", options);
+}
+
+ParamFile ReadParamFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::kInputMissing, path + ": cannot open parameter file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto bad = [&](const std::string& m) { return Error(ErrorCode::kBadParameter, path + ": " + m); };
+  json doc = json::parse(ss.str(), nullptr, false);
+  if (doc.is_discarded() || !doc.is_object()) throw bad("not a JSON object");
+  ParamFile pf;
+  if (!doc.contains("schema") || !doc["schema"].is_string()) throw bad("missing key 'schema'");
+  pf.schema = doc["schema"].get<std::string>();
+  if (pf.schema != kParamFileSchema) {
+    throw bad("schema '" + pf.schema + "' is not " + kParamFileSchema);
+  }
+  if (!doc.contains("law") || !doc["law"].is_string()) throw bad("missing key 'law'");
+  pf.law.name = doc["law"].get<std::string>();
+  if (!doc.contains("parameters") || !doc["parameters"].is_object()) {
+    throw bad("missing key 'parameters'");
+  }
+  for (const auto& [name, p] : doc["parameters"].items()) {
+    if (!p.is_object() || !p.contains("value") || !p["value"].is_number()) {
+      throw bad("parameters." + name + ".value: expected a number");
+    }
+    pf.law.parameters[name] = p["value"].get<double>();
+    if (p.contains("sigma") && p["sigma"].is_number()) pf.sigma[name] = p["sigma"].get<double>();
+  }
+  if (doc.contains("scene") && doc["scene"].contains("law") &&
+      doc["scene"]["law"].contains("expression") && doc["scene"]["law"]["expression"].is_string()) {
+    pf.law.expression = doc["scene"]["law"]["expression"].get<std::string>();
+  }
+  if (doc.contains("fit") && doc["fit"].contains("outcome") && doc["fit"]["outcome"].is_string()) {
+    pf.outcome = doc["fit"]["outcome"].get<std::string>();
+  }
+  pf.doc = std::move(doc);
+  return pf;
+}
+
+}  // namespace bouncecal

@@ -18,6 +18,7 @@
 #include "bouncecal/physics/law_registry.hpp"
 #include "law_oracle.hpp"
 #include "physics/laws/hertz_family.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
@@ -586,18 +587,8 @@ struct CommandResult {
 };
 
 CommandResult RunCli(const std::string& args) {
-  const std::string dir = ::testing::TempDir();
-  const std::string out_path = dir + "/laws_cli_out.txt", err_path = dir + "/laws_cli_err.txt";
-  const std::string cmd =
-      std::string(BOUNCECAL_BINARY) + " " + args + " >" + out_path + " 2>" + err_path;
-  const int status = std::system(cmd.c_str());
-  auto slurp = [](const std::string& path) {
-    std::ifstream in(path);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  };
-  return {WEXITSTATUS(status), slurp(out_path), slurp(err_path)};
+  const testing_util::CommandResult r = testing_util::RunCommand(BOUNCECAL_BINARY, args);
+  return {r.exit_code, r.out, r.err};
 }
 
 TEST(LawsCli, JsonListsEveryRegisteredLawWithStableKeys) {

@@ -15,6 +15,7 @@
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/flight.hpp"
 #include "bouncecal/physics/law_registry.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
@@ -362,7 +363,8 @@ TEST(SimulateCli, SceneFileAndFlagsGiveTheLibraryResult) {
   s.law.parameters = {{"k", 1e7}, {"gamma", 0.3}};
   s.effects.drag = DragModel::kQuadratic;
   s.limits.max_impacts = 6;
-  const std::string path = testing::TempDir() + "simulate_cli_scene.toml";
+  const testing_util::ScratchDir dir("bc_sim_cli");
+  const std::string path = dir / "simulate_cli_scene.toml";
   {
     FILE* f = std::fopen(path.c_str(), "w");
     ASSERT_NE(f, nullptr);

@@ -195,17 +195,22 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
 
   for (const ClippingReport& c : audio.clipping)
     if (c.clipped())
-      res.warnings.push_back("channel " + std::to_string(c.channel) + " is clipped (" +
-                             std::to_string(c.clipped_samples) +
-                             " samples at its extreme value); onsets are still usable, "
-                             "amplitudes are not");
+      res.warnings.push_back({"clipped",
+                              "channel " + std::to_string(c.channel) + " is clipped (" +
+                                  std::to_string(c.clipped_samples) +
+                                  " samples at its extreme value); onsets are still usable, "
+                                  "amplitudes are not",
+                              -1});
   for (std::size_t s = 0; s < res.sequences.size(); ++s) {
     const Sequence& q = res.sequences[s];
     for (int k : q.missed_after)
-      res.warnings.push_back("sequence " + std::to_string(s) + ": an impact seems missing after " +
-                             "impact " + std::to_string(k) +
-                             " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
-                             " s); its interval is about two expected ones");
+      res.warnings.push_back(
+          {"missed_impact",
+           "sequence " + std::to_string(s) + ": an impact seems missing after impact " +
+               std::to_string(k) +
+               " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
+               " s); its interval is about two expected ones",
+           k});
   }
   return res;
 }

@@ -30,6 +30,7 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/fit/kinematics.hpp"
 #include "commands.hpp"
+#include "output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -142,8 +143,8 @@ void Run(const AnalyzeFlags& flags) {
     if (e.code() == ErrorCode::kNoBounces) throw Error(e.code(), flags.file + ": " + e.what());
     throw;
   }
-  std::vector<std::string> warnings = det.warnings;
-  for (const std::string& w : an.warnings) warnings.push_back(w);
+  std::vector<Warning> warnings = det.warnings;
+  for (const Warning& w : an.warnings) warnings.push_back(w);
   const Summary sum = Summarize(an);
   const Sequence& seq = det.main();
 
@@ -186,12 +187,12 @@ void Run(const AnalyzeFlags& flags) {
                     {"n_with_e", sum.n_with_e},
                     {"e_min", Num(sum.e_min)},
                     {"e_max", Num(sum.e_max)}};
-    j["warnings"] = warnings;
+    j["warnings"] = WarningsJson(warnings);
     std::cout << j.dump(2) << "\n";
     return;
   }
 
-  for (const std::string& w : warnings) std::fprintf(stderr, "bouncecal: warning: %s\n", w.c_str());
+  PrintWarnings(warnings);
   std::ostringstream o;
   if (flags.csv) {
     o << "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"

@@ -22,6 +22,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
 #include "commands.hpp"
+#include "output.hpp"
 
 namespace bouncecal::cli {
 namespace {
@@ -57,8 +58,7 @@ void Run(const DetectFlags& f) {
   opt.refine = !f.no_refine;
   const Audio audio = ReadAudio(f.file);
   const DetectionResult r = DetectImpacts(audio, opt);
-  for (const std::string& w : r.warnings)
-    std::fprintf(stderr, "bouncecal: warning: %s\n", w.c_str());
+  PrintWarnings(r.warnings);
 
   if (f.json) {
     nlohmann::json j;
@@ -84,7 +84,7 @@ void Run(const DetectFlags& f) {
     }
     j["main_sequence"] = r.main_sequence;
     j["n_candidates"] = r.candidates.size();
-    j["warnings"] = r.warnings;
+    j["warnings"] = WarningsJson(r.warnings);
     std::cout << j.dump(2) << "\n";
     return;
   }

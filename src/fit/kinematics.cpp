@@ -151,15 +151,19 @@ Analysis AnalyzeBounces(const Sequence& sequence, const Scene& scene,
       }
     }
     if (missed.count(static_cast<int>(k))) {
-      out.warnings.push_back("interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
-                             ": an impact seems missing; speeds and e around it are not given");
+      out.warnings.push_back({"missed_impact",
+                              "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
+                                  ": an impact seems missing; speeds and e around it are not given",
+                              static_cast<int>(k)});
       continue;
     }
     const double flight_time = interval - tau[k];
     if (!(flight_time > 0.0)) {
       out.warnings.push_back(
-          "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
-          Fmt(": %.3g s is not longer than the contact duration %.3g s", interval, tau[k]));
+          {"interval_too_short",
+           "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
+               Fmt(": %.3g s is not longer than the contact duration %.3g s", interval, tau[k]),
+           static_cast<int>(k)});
       continue;
     }
     v_out[k] = flight.LaunchSpeedForFlightTime(flight_time);
@@ -206,10 +210,12 @@ Analysis AnalyzeBounces(const Sequence& sequence, const Scene& scene,
     bo.eta_sigma = 2.0 * std::abs(bo.e) * bo.e_sigma;
     if (bo.e > 1.0) {
       out.warnings.push_back(
-          "impact " + std::to_string(k) + Fmt(": e = %.5f > 1 (+- %.2g): ", bo.e, bo.e_sigma) +
-          (k == 0 ? "the drop height/impact speed is too low for the first interval, or the "
-                    "first detected impact is not the drop's first"
-                  : "timing noise, a wrong scene (drag) or a mis-tracked impact"));
+          {"e_above_one",
+           "impact " + std::to_string(k) + Fmt(": e = %.5f > 1 (+- %.2g): ", bo.e, bo.e_sigma) +
+               (k == 0 ? "the drop height/impact speed is too low for the first interval, or the "
+                         "first detected impact is not the drop's first"
+                       : "timing noise, a wrong scene (drag) or a mis-tracked impact"),
+           static_cast<int>(k)});
     }
   }
   // Correlation of successive e's: shared onsets t_k (e_k's "this", e_{k+1}'s "prev") and
@@ -249,9 +255,10 @@ Analysis AnalyzeBounces(const Sequence& sequence, const Scene& scene,
     for (const auto& [j, g] : grad) var += g * g * s[j] * s[j];
     out.mean_eta_first3_sigma = std::sqrt(var);
   } else {
-    out.warnings.push_back(
-        "fewer than three bounces with a known e: no mean eta of the first "
-        "three");
+    out.warnings.push_back({"no_mean_eta",
+                            "fewer than three bounces with a known e: no mean eta of the first "
+                            "three",
+                            -1});
   }
   return out;
 }

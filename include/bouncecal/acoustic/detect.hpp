@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/core/warning.hpp"
 
 namespace bouncecal {
 
@@ -50,10 +51,10 @@ struct DetectionResult {
   int channel = -1;  // channel used, -1 = mix
   std::vector<double> channel_score_db;
   std::vector<ClippingReport> clipping;
-  std::vector<Impact> candidates;     // every onset found, before tracking
-  std::vector<Sequence> sequences;    // in time order
-  int main_sequence = -1;             // index of the longest sequence
-  std::vector<std::string> warnings;  // human-readable notes (clipping, missed impacts...)
+  std::vector<Impact> candidates;   // every onset found, before tracking
+  std::vector<Sequence> sequences;  // in time order
+  int main_sequence = -1;           // index of the longest sequence
+  std::vector<Warning> warnings;    // coded notes (clipping, missed impacts...)
   const Sequence& main() const { return sequences.at(static_cast<size_t>(main_sequence)); }
 };
 

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/warning.hpp"
 #include "bouncecal/physics/scene.hpp"
 
 namespace bouncecal {
@@ -63,7 +64,7 @@ struct Analysis {
   // The flight model used: gravity (with buoyancy) and terminal speed (inf without drag).
   double effective_gravity_m_s2 = 0.0;
   double terminal_speed_m_s = 0.0;
-  std::vector<std::string> warnings;  // intervals that could not be used, e > 1, ...
+  std::vector<Warning> warnings;  // coded: intervals that could not be used, e > 1, ...
 };
 
 // Hertz contact duration of the scene's ball on its surface at impact speed v (PHYSICS.md §2;

@@ -1,0 +1,31 @@
+// bouncecal/core/warning.hpp — a coded diagnostic: what a result's user must know about it.
+//
+// A result is either trustworthy or flagged. Every stage that can produce a number that looks
+// precise but is not (a phantom impact, a drop height that cannot be right, a fit at a bound)
+// adds a Warning with a stable machine-readable `code` (snake_case; listed in README.md), a
+// one-line human `message` naming the values involved, and the impact (or bounce) it concerns.
+//
+//   out.warnings.push_back({"e_above_one", "impact 3: e = 1.02 +- 0.004 > 1", 3});
+//
+// JSON form (every command): {"code": "...", "message": "...", "impact": 3 | null}.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace bouncecal {
+
+struct Warning {
+  std::string code;     // stable, snake_case: scripts test it
+  std::string message;  // one line, for people
+  int impact = -1;      // index of the impact/bounce concerned (in its sequence), -1 = none
+};
+
+// True if `warnings` holds one with this code.
+inline bool HasWarning(const std::vector<Warning>& warnings, const std::string& code) {
+  for (const Warning& w : warnings)
+    if (w.code == code) return true;
+  return false;
+}
+
+}  // namespace bouncecal

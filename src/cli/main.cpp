@@ -4,10 +4,13 @@
 
 #include <CLI/CLI.hpp>
 
+#include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
 #include "commands.hpp"
 
 int main(int argc, char** argv) {
+  // A SIGINT/SIGTERM mid-write removes the temporary file; finished outputs stay complete.
+  bouncecal::InstallTempFileCleanupOnSignals();
   CLI::App app{"bouncecal " BOUNCECAL_VERSION
                " — calibrate contact-law damping from the sound of a bouncing ball"};
   app.set_version_flag("--version", std::string("bouncecal ") + BOUNCECAL_VERSION);

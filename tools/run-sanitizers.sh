@@ -22,5 +22,5 @@ if [ "$what" = tsan ] || [ "$what" = all ]; then
   cmake -S "$root" -B "$root/build-tsan" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DBOUNCECAL_SANITIZE=thread -DBOUNCECAL_BUILD_TOOLS=OFF >/dev/null
   cmake --build "$root/build-tsan" -j "$jobs" --target bouncecal calibrate_cli_test calibrate_test
-  (cd "$root/build-tsan" && ctest --output-on-failure -j "$jobs" -R 'Batch|Jobs|CompareLaws|Parallel')
+  (cd "$root/build-tsan" && ctest --output-on-failure -j "$jobs" -R 'Batch|Jobs|LawComparison|Parallel|Thread')
 fi

@@ -2,6 +2,7 @@
 //
 //   bouncecal simulate --scene drop.toml
 //   bouncecal simulate --law walton-braun --set gamma=0.5 --height 0.2 --json
+//   bouncecal simulate --params params.json      # replay a fit: law, parameters, scene, drop
 //
 // Human table on stdout by default; --json / --csv for scripts (stable keys); messages on
 // stderr only.
@@ -14,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/io/param_resolved.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "commands.hpp"
@@ -24,6 +26,7 @@ namespace {
 
 struct SimulateFlags {
   SceneFlags scene;
+  std::string params_file;  // --params: the scene, law and drop of a parameter file
   std::optional<double> rtol;
   std::optional<double> horizon_s;
   std::optional<int> max_impacts;
@@ -100,9 +103,27 @@ void PrintHuman(const ContactLaw& law, const std::vector<double>& p, const Simul
   std::printf("stop: %s (%s)\n", StopReasonName(s.stop_reason), s.stop_detail.c_str());
 }
 
+// The replay scene of a parameter file (param_resolved.hpp). Scene and law flags would make it
+// another scene than the fit's, so they are refused with --params.
+Scene ParamsScene(const SimulateFlags& f) {
+  const SceneFlags& s = f.scene;
+  const bool any_scene_flag = !s.scene_file.empty() || s.height_m || s.impact_speed_m_s ||
+                              s.diameter_m || s.density_kg_m3 || s.mass_kg ||
+                              !s.material.empty() || !s.drag.empty() || s.buoyancy ||
+                              s.contact_duration || s.g_m_s2 || !s.law.empty() ||
+                              !s.law_sets.empty() || !s.expression.empty();
+  if (any_scene_flag) {
+    throw Error(ErrorCode::kUsage,
+                "--params " + f.params_file +
+                    ": the file is the whole scene and law; scene and law flags cannot be "
+                    "combined with it (use --max-impacts/--horizon to shorten the run)");
+  }
+  return ReplayFromParamFile(ReadParamFile(f.params_file), f.params_file).scene;
+}
+
 void Run(const SimulateFlags& f) {
   if (f.json && f.csv) throw Error(ErrorCode::kUsage, "--json and --csv are exclusive");
-  Scene scene = ResolveScene(f.scene);
+  Scene scene = f.params_file.empty() ? ResolveScene(f.scene) : ParamsScene(f);
   if (f.horizon_s) {
     if (!(*f.horizon_s > 0.0) || !std::isfinite(*f.horizon_s)) {
       throw Error(ErrorCode::kUsage, "--horizon: must be a positive number of seconds");
@@ -137,6 +158,9 @@ void RegisterSimulate(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "simulate", "simulate a bouncing ball under a contact law (impacts, energy ledger)");
   AddSceneFlags(sub, &flags->scene, true);
+  sub->add_option("--params", flags->params_file,
+                  "replay a parameter file (calibrate -o): its law, parameters, scene and the "
+                  "fitted first impact speed");
   sub->add_option("--rtol", flags->rtol,
                   "relative tolerance of the contact integrator (default 1e-9)");
   sub->add_option("--horizon", flags->horizon_s, "stop after this time, s (scene limits)");

@@ -14,5 +14,6 @@ void RegisterSynth(CLI::App& app);
 void RegisterLaws(CLI::App& app);
 void RegisterSimulate(CLI::App& app);
 void RegisterCalibrate(CLI::App& app);
+void RegisterExport(CLI::App& app);
 
 }  // namespace bouncecal::cli

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   bouncecal::cli::RegisterLaws(app);
   bouncecal::cli::RegisterSimulate(app);
   bouncecal::cli::RegisterCalibrate(app);
+  bouncecal::cli::RegisterExport(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

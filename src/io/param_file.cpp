@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/io/param_resolved.hpp"
 
 namespace bouncecal {
 namespace {
@@ -123,6 +124,12 @@ json ParamFileJson(const Calibration& c, const Provenance& prov, const json& opt
   }
   j["recordings"] = recs;
   j["scene"] = SceneJson(c.scene);
+  // Every resolved physical value, for simulators and replays (param_resolved.hpp, issue 12).
+  try {
+    j["resolved"] = ResolvedJson(c);
+  } catch (const Error&) {
+    j["resolved"] = nullptr;
+  }
   try {
     j["scene_toml"] = SceneToToml(c.scene);
   } catch (const Error&) {
@@ -153,7 +160,12 @@ ParamFile ReadParamFile(const std::string& path) {
   if (!doc.contains("schema") || !doc["schema"].is_string()) throw bad("missing key 'schema'");
   pf.schema = doc["schema"].get<std::string>();
   if (pf.schema != kParamFileSchema) {
-    throw bad("schema '" + pf.schema + "' is not " + kParamFileSchema);
+    const std::string family = "bouncecal.params/";
+    const bool newer = pf.schema.rfind(family, 0) == 0 && pf.schema > kParamFileSchema;
+    throw bad("schema '" + pf.schema + "' is " +
+              (newer ? "newer than this bouncecal reads (" + std::string(kParamFileSchema) +
+                           "): upgrade bouncecal"
+                     : "unknown (expected " + std::string(kParamFileSchema) + ")"));
   }
   if (!doc.contains("law") || !doc["law"].is_string()) throw bad("missing key 'law'");
   pf.law.name = doc["law"].get<std::string>();

@@ -17,6 +17,7 @@
 //    "scene": {"ball": {...}, "surface": {...}, "environment": {...}, "drop": {...},
 //              "effects": {...}, "law": {"name", "parameters", "expression"}},
 //    "scene_toml": "...",                               // the same scene as a scene file
+//    "resolved": {...},        // every physical value as a number (param_resolved.hpp)
 //    "provenance": {"inputs": [{"path", "sha256"}], "bouncecal_version", "options",
 //                   "date_utc"}}
 // Units are in the key names or in "unit"; a sigma that does not exist (held or undetermined

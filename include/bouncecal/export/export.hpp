@@ -1,0 +1,92 @@
+// bouncecal/export/export.hpp — parameter file -> a directory a DEM simulator runs as it is.
+//
+// ExportDeck reads a parameter file (schema bouncecal.params/1), maps its law onto the target's
+// native law (mapping.hpp), picks the time step from the contact time and the error it costs in
+// e (native_law.hpp), and writes into a new directory:
+//   bounce:  in.bounce (LAMMPS, LIGGGHTS) or bounce.py (Yade): the fit's scene — the ball
+//            released from rest at the drag-free height of the replay's first impact speed onto
+//            a rigid plane z = 0, gravity, the native law — sampling trace.csv
+//            (t_s,z_m,vz_m_s: the ball centre's height above the plane and its vertical
+//            velocity, every <= 0.2 ms of simulated time);
+//            run.sh runs the simulator found on PATH (lmp, liggghts, yade), fails loudly, and
+//            turns trace.csv into impacts.csv (index,time_s,v_in_m_s,v_out_m_s) with
+//            impacts.awk (impacts located from the exact gravity flights either side of each
+//            contact); mapping.json is the ExportResult as JSON.
+//   packing: in.packing (LAMMPS, LIGGGHTS): the seed paper's validation scene (PHYSICS.md §1)
+//            with the fitted damping; run.sh runs `mpirun -np ${NP:-1}`; writes packing.csv
+//            (z_m of every sphere) and the density between 0.005 and 0.045 m.
+// Refuses (Error) an unknown or newer schema, a fit whose outcome is not "converged" (unless
+// options.force), an existing output directory (unless options.force), and a law the target
+// cannot carry within options.max_e_error (unless options.allow_approximation).
+//
+//   ExportOptions o; o.target = ExportTarget::kLammps;
+//   ExportResult r = ExportDeck("params.json", "out/", o);
+//   std::cout << ExportResultJson(r).dump(2);
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/export/mapping.hpp"
+
+namespace bouncecal {
+
+enum class ExportScene { kBounce, kPacking };
+const char* ExportSceneName(ExportScene scene);  // "bounce", "packing"
+bool ParseExportScene(const std::string& text, ExportScene* scene);
+
+struct ExportOptions {
+  ExportTarget target = ExportTarget::kLammps;
+  ExportScene scene = ExportScene::kBounce;
+  bool force = false;                // replace an existing directory; export an unconverged fit
+  bool allow_approximation = false;  // accept a mapping whose e error exceeds max_e_error
+  double max_e_error = 0.01;         // largest mapping error accepted without approximation
+  int impacts = 10;                  // bounce: impacts the run covers
+  double time_step_e_error = 5e-4;   // the time step is halved until its e error is below this
+  // The version the deck is written for; "" = detect the simulator on PATH (the verified
+  // version is assumed, with a note, when it is absent).
+  std::string simulator_version;
+  // packing scene (PHYSICS.md §1): particles, simulated time.
+  int packing_particles = 2000;
+  double packing_time_s = 3.0;
+  bool IsValid(std::string* error) const;
+};
+
+struct ExportResult {
+  std::string target;
+  std::string scene;
+  std::string simulator_version;
+  std::string law;
+  std::string native_law;
+  std::string kind;  // exact, matched, approximated
+  bool exact = false;
+  double max_e_error = 0.0;
+  double max_contact_time_error = 0.0;
+  std::map<std::string, double> coefficients;
+  double time_step_s = 0.0;
+  double steps_per_contact = 0.0;  // shortest contact time / time step
+  double time_step_e_error = 0.0;  // measured by FixedStepRestitution at v_min and v_max
+  long steps = 0;
+  double run_time_s = 0.0;  // simulated time
+  int trace_every = 0;      // steps between trace samples
+  std::vector<double> speeds_m_s;
+  std::vector<std::string> notes;
+  std::vector<std::string> files;
+};
+
+ExportResult ExportDeck(const std::string& params_path, const std::string& out_dir,
+                        const ExportOptions& options);
+
+// {target, scene, simulator_version, law, native_law, exact, max_e_error, notes[], ...}
+nlohmann::json ExportResultJson(const ExportResult& result);
+
+// The simulator's version string from the program on PATH ("" when it is not there).
+std::string DetectSimulatorVersion(ExportTarget target);
+// The program run.sh calls: lmp, liggghts, yade.
+const char* SimulatorProgram(ExportTarget target);
+// The Debian package that installs it: lammps, liggghts, yade.
+const char* SimulatorPackage(ExportTarget target);
+
+}  // namespace bouncecal

@@ -1,0 +1,113 @@
+// `bouncecal export`: a parameter file -> a directory a DEM simulator runs as it is.
+//
+//   bouncecal export params.json --to lammps -o bounce_lammps
+//   bouncecal export params.json --to yade -o bounce_yade --json
+//   bouncecal export params.json --to lammps --scene packing -o packing
+//
+// Human summary on stdout by default; --json prints the mapping ({target, simulator_version,
+// law, native_law, exact, max_e_error, notes[], ...}, also written to DIR/mapping.json).
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <string>
+
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/export/export.hpp"
+#include "commands.hpp"
+
+namespace bouncecal::cli {
+namespace {
+
+struct ExportFlags {
+  std::string params;
+  std::string to;
+  std::string scene = "bounce";
+  std::string out_dir;
+  bool json = false;
+  bool force = false;
+  bool allow_approximation = false;
+  int impacts = 10;
+  double dt_e_error = 5e-4;
+  double packing_time_s = 3.0;
+  int particles = 2000;
+};
+
+void PrintHuman(const ExportResult& r, const std::string& dir) {
+  std::printf("%s -> %s (%s), written for %s\n", r.law.c_str(), r.target.c_str(),
+              r.scene.c_str(), r.simulator_version.c_str());
+  std::printf("native law: %s  [%s]\n", r.native_law.c_str(), r.kind.c_str());
+  std::printf("mapping e error: %.3g (max over %.4g .. %.4g m/s)%s\n", r.max_e_error,
+              r.speeds_m_s.front(), r.speeds_m_s.back(), r.exact ? ", exact" : "");
+  std::printf("time step: %.4g s (%.0f steps per contact), its e error %.2g; %ld steps, %.4g s\n",
+              r.time_step_s, r.steps_per_contact, r.time_step_e_error, r.steps, r.run_time_s);
+  for (const std::string& n : r.notes) std::printf("note: %s\n", n.c_str());
+  std::printf("wrote %s/:", dir.c_str());
+  for (const std::string& f : r.files) std::printf(" %s", f.c_str());
+  std::printf("\nrun: %s/run.sh\n", dir.c_str());
+}
+
+void Run(const ExportFlags& f) {
+  ExportOptions o;
+  if (!ParseExportTarget(f.to, &o.target)) {
+    throw Error(ErrorCode::kUsage, "--to " + f.to + ": expected lammps, liggghts or yade");
+  }
+  if (!ParseExportScene(f.scene, &o.scene)) {
+    throw Error(ErrorCode::kUsage, "--scene " + f.scene + ": expected bounce or packing");
+  }
+  o.force = f.force;
+  o.allow_approximation = f.allow_approximation;
+  o.impacts = f.impacts;
+  o.time_step_e_error = f.dt_e_error;
+  o.packing_time_s = f.packing_time_s;
+  o.packing_particles = f.particles;
+  std::string why;
+  if (!o.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
+  ExportResult r;
+  try {
+    r = ExportDeck(f.params, f.out_dir, o);
+  } catch (const Error& e) {
+    // Name the command-line flags for the library's option names.
+    std::string m = e.what();
+    auto swap = [&m](const std::string& from, const std::string& to) {
+      const size_t at = m.find(from);
+      if (at != std::string::npos) m.replace(at, from.size(), to);
+    };
+    swap("(allow_approximation accepts it)", "(--allow-approximation accepts it)");
+    swap("(force overrides)", "(--force overrides)");
+    swap("(force replaces its files)", "(--force replaces its files)");
+    throw Error(e.code(), m);
+  }
+  if (f.json) {
+    std::cout << ExportResultJson(r).dump(2) << "\n";
+  } else {
+    PrintHuman(r, f.out_dir);
+  }
+}
+
+}  // namespace
+
+void RegisterExport(CLI::App& app) {
+  auto flags = std::make_shared<ExportFlags>();
+  CLI::App* sub = app.add_subcommand(
+      "export", "write a directory a DEM simulator runs: LAMMPS, LIGGGHTS or Yade input, run.sh");
+  sub->add_option("params", flags->params, "parameter file (calibrate -o)")->required();
+  sub->add_option("--to", flags->to, "target simulator: lammps, liggghts or yade")->required();
+  sub->add_option("--scene", flags->scene,
+                  "bounce (the fit's drop, default) or packing (seed paper's validation)");
+  sub->add_option("-o,--output", flags->out_dir, "output directory (must not exist)")
+      ->required();
+  sub->add_flag("--json", flags->json, "the mapping as JSON on stdout");
+  sub->add_flag("--force", flags->force,
+                "replace an existing directory's files; export a fit that did not converge");
+  sub->add_flag("--allow-approximation", flags->allow_approximation,
+                "export the closest native law even when its e error exceeds 0.01");
+  sub->add_option("--impacts", flags->impacts, "bounce: impacts the run covers (default 10)");
+  sub->add_option("--dt-e-error", flags->dt_e_error,
+                  "bounce: largest e error the time step may cost (default 5e-4)");
+  sub->add_option("--packing-time", flags->packing_time_s,
+                  "packing: simulated time, s (default 3, the seed paper's)");
+  sub->add_option("--particles", flags->particles, "packing: spheres poured (default 2000)");
+  sub->callback([flags]() { Run(*flags); });
+}
+
+}  // namespace bouncecal::cli

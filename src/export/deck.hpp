@@ -1,0 +1,48 @@
+// export/deck.hpp — what every deck writer needs (internal to the export wing).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bouncecal/export/export.hpp"
+#include "bouncecal/export/mapping.hpp"
+
+namespace bouncecal::exporter {
+
+// Everything a deck states, resolved to numbers (SI units).
+struct DeckInput {
+  Mapping mapping;
+  ExportOptions options;
+  std::string law_summary;     // "hertz-tsuji: k = ..., e = ..." for the header
+  std::string params_path;
+  double radius_m = 0.0;
+  double mass_kg = 0.0;
+  double density_kg_m3 = 0.0;  // mass / volume, so the simulator's sphere has the fit's mass
+  double poisson_ratio = 0.3;  // the ball's, for laws that take elastic constants
+  double g_m_s2 = 9.8;
+  double release_height_m = 0.0;  // ball bottom above the plane at t = 0 (rest)
+  double time_step_s = 0.0;
+  long steps = 0;
+  int trace_every = 1;
+  std::vector<std::string> comments;  // mapping, time step, notes: written as comment lines
+  // packing scene
+  double packing_restitution = 0.0;  // pairwise e the packing uses (the fit's, see export.cpp)
+};
+
+// Shortest text that reads back to the same double.
+std::string Num(double v);
+// Comment lines with a prefix ("# ").
+std::string CommentBlock(const std::vector<std::string>& lines, const std::string& prefix);
+
+std::string LammpsBounceDeck(const DeckInput& in);
+std::string LiggghtsBounceDeck(const DeckInput& in);
+std::string YadeBounceScript(const DeckInput& in);
+std::string LammpsPackingDeck(const DeckInput& in);
+std::string LiggghtsPackingDeck(const DeckInput& in);
+
+// run.sh for a target and scene; impacts.awk; packing.awk.
+std::string RunScript(const DeckInput& in);
+std::string ImpactsAwk();
+std::string PackingAwk();
+
+}  // namespace bouncecal::exporter

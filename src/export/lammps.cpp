@@ -1,0 +1,118 @@
+// LAMMPS decks (bounce and packing) for the Debian 12 build ("29 Sep 2021 - Update 2").
+//
+// Keywords (LAMMPS GRANULAR package, docs of fix wall/gran and pair_style granular):
+//   fix wall/gran granular hooke kn eta_n0 damping velocity    F = kn d - eta_n0 v_n
+//   fix wall/gran granular hertz kn eta_n0 damping viscoelastic F = kn a d - eta_n0 a m* v_n,
+//                                                             a = sqrt(R d), m* = m (wall)
+//   fix wall/gran granular hertz kn e damping tsuji           F = kn a d - alpha(e) sqrt(m* kn a) v_n
+//                                                             with LAMMPS' alpha(e) polynomial
+//   pair_style gran/hooke/history kn kt gamma_n gamma_t xmu dampflag   F = kn d - m* gamma_n v_n
+// Units: `units si`. The wall is the plane z = 0; the sphere's mass is density * pi d^3 / 6.
+#include <cmath>
+#include <sstream>
+
+#include "export/deck.hpp"
+
+namespace bouncecal::exporter {
+namespace {
+
+std::string WallLine(const DeckInput& in) {
+  const Mapping& m = in.mapping;
+  const auto& c = m.coefficients;
+  std::ostringstream os;
+  os << "fix wall all wall/gran granular ";
+  if (m.form == NativeForm::kLinear) {
+    os << "hooke " << Num(c.at("kn_n_m")) << " " << Num(c.at("damping_n_s_m"))
+       << " damping velocity";
+  } else if (m.form == NativeForm::kHertzViscoelastic) {
+    os << "hertz " << Num(c.at("kn_pa")) << " " << Num(c.at("eta_n0_1_m_s"))
+       << " damping viscoelastic";
+  } else {
+    os << "hertz " << Num(c.at("kn_pa")) << " " << Num(c.at("e_input")) << " damping tsuji";
+  }
+  os << " tangential linear_nohistory 0 0 zplane 0.0 NULL\n";
+  return os.str();
+}
+
+}  // namespace
+
+std::string LammpsBounceDeck(const DeckInput& in) {
+  const double r = in.radius_m, z0 = r + in.release_height_m;
+  std::ostringstream os;
+  os << CommentBlock(in.comments, "# ");
+  os << "# Run: lmp -in in.bounce   (-var steps N to shorten; run.sh does this and writes\n"
+     << "# impacts.csv)\n\n";
+  os << "units si\n"
+     << "atom_style sphere\n"
+     << "atom_modify map array\n"
+     << "boundary f f f\n"
+     << "comm_modify vel yes\n"
+     << "region box block " << Num(-4 * r) << " " << Num(4 * r) << " " << Num(-4 * r) << " "
+     << Num(4 * r) << " " << Num(-r) << " " << Num(z0 + 4 * r) << " units box\n"
+     << "create_box 1 box\n"
+     << "create_atoms 1 single 0 0 " << Num(z0) << " units box\n"
+     << "set atom 1 diameter " << Num(2 * r) << " density " << Num(in.density_kg_m3) << "\n"
+     << "velocity all set 0 0 0\n"
+     << "pair_style none\n"
+     << "fix integrate all nve/sphere\n"
+     << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0 0 -1\n"
+     << WallLine(in) << "timestep " << Num(in.time_step_s) << "\n"
+     << "variable steps index " << in.steps << "\n"
+     << "variable t equal time\n"
+     << "variable z equal z[1]\n"
+     << "variable vz equal vz[1]\n"
+     << "fix trace all print " << in.trace_every
+     << " \"${t},${z},${vz}\" file trace.csv screen no title \"t_s,z_m,vz_m_s\"\n"
+     << "thermo " << std::max<long>(in.steps / 10, 1) << "\n"
+     << "run ${steps}\n";
+  return os.str();
+}
+
+std::string LammpsPackingDeck(const DeckInput& in) {
+  // Seed 002's validation scene (PHYSICS.md §1): k_n = k_s = 1e7 N/m, mu = 0.3, the fitted e.
+  // gran/hooke/history damps with m* gamma_n: the same e needs gamma_n = 2 zeta sqrt(kn/m*),
+  // m* = m/2 between spheres and m* = m against the walls.
+  const double kn = 1e7, mu = 0.3, d = 0.01, rho = 7800.0;
+  const double le = std::log(in.packing_restitution);
+  const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
+  const double m = rho * M_PI * d * d * d / 6.0;
+  const double gn_pp = 2.0 * zeta * std::sqrt(kn / (0.5 * m));
+  const double gn_pw = 2.0 * zeta * std::sqrt(kn / m);
+  std::ostringstream os;
+  os << CommentBlock(in.comments, "# ");
+  os << "# Run: mpirun -np N lmp -in in.packing   (-var steps N, -var seed S)\n\n"
+     << "units si\n"
+     << "atom_style sphere\n"
+     << "boundary f f f\n"
+     << "newton off\n"
+     << "comm_modify vel yes\n"
+     << "region box block -0.105 0.105 -0.105 0.105 -0.001 0.25 units box\n"
+     << "create_box 1 box\n"
+     << "neighbor 0.002 bin\n"
+     << "neigh_modify delay 0\n"
+     << "# gamma_n (1/s): " << Num(gn_pp) << " between spheres, " << Num(gn_pw)
+     << " against walls, both giving e = " << Num(in.packing_restitution) << "\n"
+     << "pair_style gran/hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pp)
+     << " " << Num(0.5 * gn_pp) << " " << Num(mu) << " 1\n"
+     << "pair_coeff * *\n"
+     << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0 0 -1\n"
+     << "fix integrate all nve/sphere\n"
+     << "fix floor all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " "
+     << Num(gn_pw) << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zplane 0.0 NULL\n"
+     << "fix side all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " "
+     << Num(gn_pw) << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zcylinder 0.1\n"
+     << "region hopper cylinder z 0 0 0.094 0.1 0.2 units box\n"
+     << "variable seed index 4767\n"
+     << "fix pour all pour " << in.options.packing_particles << " 1 ${seed} region hopper diam"
+     << " one " << Num(d) << " dens " << Num(rho) << " " << Num(rho) << "\n"
+     << "timestep " << Num(in.time_step_s) << "\n"
+     << "variable steps index " << in.steps << "\n"
+     << "compute rke all erotate/sphere\n"
+     << "thermo_style custom step atoms ke c_rke\n"
+     << "thermo " << std::max<long>(in.steps / 20, 1) << "\n"
+     << "run ${steps}\n"
+     << "write_dump all custom packing.dump id x y z radius modify sort id\n";
+  return os.str();
+}
+
+}  // namespace bouncecal::exporter

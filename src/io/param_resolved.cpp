@@ -2,7 +2,8 @@
 #include "bouncecal/io/param_resolved.hpp"
 
 #include <cmath>
-#include <sstream>
+#include <cstdio>
+#include <cstdlib>
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/physics/law_registry.hpp"
@@ -15,11 +16,14 @@ using nlohmann::json;
 
 json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
+// Shortest text that reads back to the same double.
 std::string Text(double v) {
-  std::ostringstream os;
-  os.precision(17);
-  os << v;
-  return os.str();
+  char buf[64];
+  for (int prec = 1; prec <= 17; ++prec) {
+    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
+    if (std::strtod(buf, nullptr) == v) break;
+  }
+  return buf;
 }
 
 // E* of ball on surface (Johnson eq. 4.22); NaN when the ball has no elastic constants. A

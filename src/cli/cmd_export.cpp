@@ -30,6 +30,7 @@ struct ExportFlags {
   double dt_e_error = 5e-4;
   double packing_time_s = 3.0;
   int particles = 2000;
+  double packing_restitution = 0.0;
 };
 
 void PrintHuman(const ExportResult& r, const std::string& dir) {
@@ -60,6 +61,7 @@ void Run(const ExportFlags& f) {
   o.time_step_e_error = f.dt_e_error;
   o.packing_time_s = f.packing_time_s;
   o.packing_particles = f.particles;
+  o.packing_restitution = f.packing_restitution;
   std::string why;
   if (!o.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
   ExportResult r;
@@ -107,6 +109,8 @@ void RegisterExport(CLI::App& app) {
   sub->add_option("--packing-time", flags->packing_time_s,
                   "packing: simulated time, s (default 3, the seed paper's)");
   sub->add_option("--particles", flags->particles, "packing: spheres poured (default 2000)");
+  sub->add_option("--packing-restitution", flags->packing_restitution,
+                  "packing: pairwise e instead of the fit's (to see how damping matters)");
   sub->callback([flags]() { Run(*flags); });
 }
 

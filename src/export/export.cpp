@@ -418,6 +418,10 @@ bool ExportOptions::IsValid(std::string* error) const {
   if (!(packing_time_s > 0.0 && packing_time_s <= 100.0)) {
     return fail("packing_time_s = " + Num(packing_time_s) + " must be in (0, 100]");
   }
+  if (!(packing_restitution == 0.0 || (packing_restitution > 0.0 && packing_restitution < 1.0))) {
+    return fail("packing_restitution = " + Num(packing_restitution) +
+                " must be in (0, 1), or 0 for the fit's");
+  }
   if (scene == ExportScene::kPacking && target == ExportTarget::kYade) {
     return fail("scene packing: written for lammps and liggghts only (target yade)");
   }
@@ -505,8 +509,10 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
     // Packing: linear springs k_n = 1e7 N/m between 1 cm steel spheres (m* = m/2) with the fit's
     // e at the middle measured speed.
     const size_t mid = speeds.size() / 2;
-    in.packing_restitution = SimulateContact(*law, law->ParameterValues(), body, speeds[mid], 0.0)
-                                 .restitution;
+    in.packing_restitution =
+        options.packing_restitution > 0.0
+            ? options.packing_restitution
+            : SimulateContact(*law, law->ParameterValues(), body, speeds[mid], 0.0).restitution;
     const double m_sphere = 7800.0 * M_PI * 1e-6 / 6.0;
     const double le = std::log(in.packing_restitution);
     const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
@@ -518,9 +524,12 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
     ts.steps_per_contact = kPackingStepsPerContact;
     ts.e_error = MaxTimeStepError(pp, pair, {0.1, 2.0}, ts.dt_s, 0.0);
     r.run_time_s = options.packing_time_s;
+    r.packing_restitution = in.packing_restitution;
     r.notes.push_back("packing: linear springs k_n = k_s = 1e7 N/m, mu = 0.3, pairwise e = " +
-                      Num(in.packing_restitution) + " (the fit's e at " + Num(speeds[mid]) +
-                      " m/s)");
+                      Num(in.packing_restitution) +
+                      (options.packing_restitution > 0.0
+                           ? std::string(" (given, not the fit's)")
+                           : " (the fit's e at " + Num(speeds[mid]) + " m/s)"));
   }
   r.time_step_s = ts.dt_s;
   r.time_step_e_error = ts.e_error;
@@ -589,6 +598,8 @@ nlohmann::json ExportResultJson(const ExportResult& r) {
           {"steps", r.steps},
           {"run_time_s", r.run_time_s},
           {"trace_every_steps", r.trace_every},
+          {"packing_restitution",
+           r.packing_restitution > 0.0 ? nlohmann::json(r.packing_restitution) : nullptr},
           {"files", r.files},
           {"notes", r.notes},
           {"warnings", nlohmann::json::array()}};

@@ -148,11 +148,12 @@ std::string LiggghtsPackingDeck(const DeckInput& in) {
         "zplane 0.0\n"
      << "fix side all wall/gran model hooke/stiffness tangential history primitive type 2 "
         "zcylinder 0.1 0.0 0.0\n"
-     << "variable seed index 4767\n"
+     << "variable seed index 86028121\n"  // LIGGGHTS seeds must be primes > 10000
      << "fix pts all particletemplate/sphere 15485863 atom_type 1 density constant " << Num(rho)
      << " radius constant " << Num(0.5 * d) << "\n"
      << "fix pdd all particledistribution/discrete 32452843 1 pts 1.0\n"
-     << "region hopper cylinder z 0 0 0.094 0.1 0.2 units box\n"
+     << "# The hopper: spheres placed at random (no overlap) between 5 and 20 cm, at rest.\n"
+     << "region hopper cylinder z 0 0 0.094 0.05 0.2 units box\n"
      << "fix ins all insert/pack seed ${seed} distributiontemplate pdd maxattempt 200 "
         "insert_every once overlapcheck yes all_in yes particles_in_region "
      << in.options.packing_particles << " region hopper\n"

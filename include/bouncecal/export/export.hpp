@@ -51,6 +51,7 @@ struct ExportOptions {
   // packing scene (PHYSICS.md §1): particles, simulated time.
   int packing_particles = 2000;
   double packing_time_s = 3.0;
+  double packing_restitution = 0.0;  // pairwise e; 0 = the fit's e at the middle measured speed
   bool IsValid(std::string* error) const;
 };
 
@@ -71,6 +72,7 @@ struct ExportResult {
   long steps = 0;
   double run_time_s = 0.0;  // simulated time
   int trace_every = 0;      // steps between trace samples
+  double packing_restitution = 0.0;  // packing: the pairwise e used (0 for bounce)
   std::vector<double> speeds_m_s;
   std::vector<std::string> notes;
   std::vector<std::string> files;

@@ -123,8 +123,8 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
   ScratchDir dir("bc_integ");
   const std::string wav = dir / "rec.wav", params = dir / "params.json", out = dir / "deck";
   // Fit: a 5 cm drop rendered with the law, fitted with the same law.
-  CommandResult r = RunCommand(kBin, "synth --law " + c.law + " --set " + c.set +
-                                         " --height 0.05 --seed 7 -o " + wav);
+  CommandResult r = RunCommand(
+      kBin, "synth --law " + c.law + " --set " + c.set + " --height 0.05 --seed 7 -o " + wav);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   r = RunCommand(kBin, "calibrate " + wav + " --law " + c.law + " -o " + params);
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -174,7 +174,8 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
     EXPECT_NEAR(e_sim, e_ref, e_tol) << "impact " << k;
     worst_e = std::max(worst_e, std::abs(e_sim - e_ref));
     const double v_ref = ref[k]["v_in_m_s"].get<double>();
-    EXPECT_NEAR(sim[k].v_in_m_s / v_ref, 1.0, approximated ? static_cast<double>(k + 1) * e_tol / e_ref : 2e-3)
+    EXPECT_NEAR(sim[k].v_in_m_s / v_ref, 1.0,
+                approximated ? static_cast<double>(k + 1) * e_tol / e_ref : 2e-3)
         << "impact " << k;
     if (k > 0) {
       double dt_ref = ref[k]["time_s"].get<double>() - ref[k - 1]["time_s"].get<double>();
@@ -194,13 +195,12 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
   std::ofstream row(std::string(BOUNCECAL_BUILD_DIR) + "/integration/" + c.law + "_" + c.target +
                     ".md");
   char buf[1024];
-  std::snprintf(buf, sizeof buf,
-                "| %s | %s | `%s` | %s | %.2g | %.5f | %.5f | %.1e | %.1e | %.1e | %.0f |\n",
-                c.law.c_str(), mapping["simulator_version"].get<std::string>().c_str(),
-                mapping["native_law"].get<std::string>().c_str(),
-                mapping["mapping"].get<std::string>().c_str(), mapping_error,
-                ref[0]["e"].get<double>(), sim[0].v_out_m_s / sim[0].v_in_m_s, worst_e,
-                step_error, worst_interval, seconds);
+  std::snprintf(
+      buf, sizeof buf, "| %s | %s | `%s` | %s | %.2g | %.5f | %.5f | %.1e | %.1e | %.1e | %.0f |\n",
+      c.law.c_str(), mapping["simulator_version"].get<std::string>().c_str(),
+      mapping["native_law"].get<std::string>().c_str(),
+      mapping["mapping"].get<std::string>().c_str(), mapping_error, ref[0]["e"].get<double>(),
+      sim[0].v_out_m_s / sim[0].v_in_m_s, worst_e, step_error, worst_interval, seconds);
   row << buf;
 }
 

@@ -124,8 +124,7 @@ TEST(NativeLaw, FixedStepEmulationReproducesLammpsAndStaysWithinTheDashpotBound)
   // The dashpot force jumps to c v at first touch (and is cut at the last step): a contact
   // costs at most ~ c dt / m in e; it is not monotone in dt (the end phase depends on t_c/dt).
   for (double dt : {4e-7, 2e-7, 1e-7, 5e-8}) {
-    EXPECT_LT(MaxTimeStepError(m, kSteel, {0.3, 2.0}, dt, 9.8), 28.636 * dt / kSteel.mass_kg)
-        << dt;
+    EXPECT_LT(MaxTimeStepError(m, kSteel, {0.3, 2.0}, dt, 9.8), 28.636 * dt / kSteel.mass_kg) << dt;
   }
   EXPECT_LT(MaxTimeStepError(m, kSteel, {2.0}, 2.5e-8, 9.8), 8e-6);  // measured 5.7e-6
 }
@@ -175,8 +174,8 @@ TEST(Mapping, SeedLawBecomesALinearDashpotWithTheSameRestitutionAndContactTime) 
     const Mapping map = MapLaw(s, {0.3, 2.0}, t);
     EXPECT_EQ(map.kind, "matched");
     const NativeModel native = map.Model();
-    const oracle::Result r = oracle::Integrate(native, native.ParameterValues(),
-                                               BodyFromScene(s), 1.0);
+    const oracle::Result r =
+        oracle::Integrate(native, native.ParameterValues(), BodyFromScene(s), 1.0);
     EXPECT_NEAR(r.restitution, e, 1e-8);
     EXPECT_NEAR(r.contact_time_s, tc, 1e-6 * tc);
     EXPECT_LT(map.max_e_error, 1e-7);
@@ -218,9 +217,8 @@ TEST(ImpactsAwk, RecoversAnalyticBouncesFromCoarseSamples) {
   }
   trace.close();
   std::ofstream(dir / "impacts.awk") << exporter::ImpactsAwk();
-  const CommandResult r = RunCommand(
-      "awk", "-F, -v R=" + std::to_string(R) + " -v g=9.8 -f " + (dir / "impacts.awk") + " " +
-                 (dir / "trace.csv"));
+  const CommandResult r = RunCommand("awk", "-F, -v R=" + std::to_string(R) + " -v g=9.8 -f " +
+                                                (dir / "impacts.awk") + " " + (dir / "trace.csv"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::istringstream in(r.out);
   std::string line;
@@ -242,7 +240,6 @@ TEST(ImpactsAwk, RecoversAnalyticBouncesFromCoarseSamples) {
   EXPECT_GE(k + 1, t_imp.size() - 1);  // all but a last one whose rebound was not sampled
 }
 
-
 TEST(RunScript, FailsLoudlyWithTheInstallCommandWhenTheSimulatorIsMissing) {
   ScratchDir dir;
   const std::string params = WriteFit(dir, "walton-braun", {{"gamma", 0.2}}, "wb.json");
@@ -260,8 +257,7 @@ TEST(RunScript, FailsLoudlyWithTheInstallCommandWhenTheSimulatorIsMissing) {
     EXPECT_EQ(r.exit_code, 127) << target;
     const std::string program = target == std::string("lammps") ? "lmp" : target;
     EXPECT_NE(r.err.find(program + " not found on PATH"), std::string::npos) << r.err;
-    EXPECT_NE(r.err.find(std::string("apt-get install -y ") + target), std::string::npos)
-        << r.err;
+    EXPECT_NE(r.err.find(std::string("apt-get install -y ") + target), std::string::npos) << r.err;
     EXPECT_FALSE(std::filesystem::exists(out + "/impacts.csv"));
   }
 }
@@ -307,7 +303,8 @@ TEST(ParamResolved, SimulateParamsReplaysTheFitAsExplicitFlagsWould) {
   ScratchDir dir;
   const std::string params = WriteFit(dir, "hertz-tsuji", {{"e", 0.85}}, "ht.json");
   const json j = Load(params);
-  const CommandResult a = RunCommand(kBin, "simulate --params " + params + " --json --max-impacts 5");
+  const CommandResult a =
+      RunCommand(kBin, "simulate --params " + params + " --json --max-impacts 5");
   ASSERT_EQ(a.exit_code, 0) << a.err;
   char v0[64];
   std::snprintf(v0, sizeof v0, "%.17g", j["recordings"][0]["impact_speed_m_s"].get<double>());
@@ -344,8 +341,8 @@ TEST(ExportCli, RefusesNewerAndUnknownSchemas) {
   json j = Load(params);
   j["schema"] = "bouncecal.params/2";
   Save(dir / "newer.json", j);
-  CommandResult r = RunCommand(kBin, "export " + (dir / "newer.json") + " --to lammps -o " +
-                                         (dir / "o1"));
+  CommandResult r =
+      RunCommand(kBin, "export " + (dir / "newer.json") + " --to lammps -o " + (dir / "o1"));
   EXPECT_EQ(r.exit_code, 9);
   EXPECT_NE(r.err.find("'bouncecal.params/2' is newer than this bouncecal reads"),
             std::string::npos)
@@ -395,20 +392,19 @@ TEST(ExportCli, RefusesAnExistingDirectoryUnlessForced) {
 
 TEST(ExportCli, RefusesAnApproximationBeyond001UnlessAllowed) {
   ScratchDir dir;
-  const std::string params =
-      WriteFit(dir, "hertz-viscoelastic", {{"A", 2e-6}}, "hv.json");
+  const std::string params = WriteFit(dir, "hertz-viscoelastic", {{"A", 2e-6}}, "hv.json");
   CommandResult r = RunCommand(kBin, "export " + params + " --to yade -o " + (dir / "o"));
   EXPECT_EQ(r.exit_code, 9);
   EXPECT_NE(r.err.find("cannot be expressed in yade within e error 0.01"), std::string::npos)
       << r.err;
   EXPECT_NE(r.err.find("--allow-approximation"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir / "o"));
-  r = RunCommand(kBin,
-                 "export " + params + " --to yade -o " + (dir / "o") + " --allow-approximation --json");
+  r = RunCommand(
+      kBin, "export " + params + " --to yade -o " + (dir / "o") + " --allow-approximation --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json m = json::parse(r.out);
-  for (const char* key : {"target", "simulator_version", "law", "native_law", "exact",
-                          "max_e_error", "notes"}) {
+  for (const char* key :
+       {"target", "simulator_version", "law", "native_law", "exact", "max_e_error", "notes"}) {
     EXPECT_TRUE(m.contains(key)) << key;
   }
   EXPECT_EQ(m["exact"], false);
@@ -432,8 +428,7 @@ TEST(ExportCli, TimeStepIsChosenFromTheContactTimeAndStatesItsError) {
   // Halved from t_c/50 until the error fits: t_c/dt is 50 * 2^n.
   const double n = std::log2(m["steps_per_contact"].get<double>() / 50.0);
   EXPECT_NEAR(n, std::round(n), 1e-9);
-  EXPECT_NEAR(m["time_step_s"].get<double>() * m["steps_per_contact"].get<double>(), tc,
-              0.01 * tc);
+  EXPECT_NEAR(m["time_step_s"].get<double>() * m["steps_per_contact"].get<double>(), tc, 0.01 * tc);
   EXPECT_LE(m["time_step_e_error"].get<double>(), 1e-3);
   EXPECT_LE(2e-4 / m["time_step_s"].get<double>(), m["trace_every_steps"].get<double>() + 1);
   const std::string deck = Slurp(dir / "o/in.bounce");

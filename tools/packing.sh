@@ -3,8 +3,8 @@
 # `bouncecal export --scene packing`: 2000 spheres (d = 1 cm, 7800 kg/m^3) poured from a 20 cm
 # hopper into a cylinder of radius 10 cm, k_n = k_s = 1e7 N/m, mu = 0.3, the fitted damping.
 # Prints a Markdown table: packing density between z = 0.005 and 0.045 m (paper: 0.625; classic
-# experiments 0.63-0.64), wall time with 1 and 2 MPI ranks (speed-up), and the density for other
-# pairwise restitutions (the paper: damping barely changes the density).
+# experiments 0.63-0.64), wall time with N and 1 MPI ranks (speed-up), and the density for other
+# pairwise restitutions on 1 rank (the paper: damping barely changes the density).
 #
 # Usage: tools/packing.sh [--params FILE] [--target lammps|liggghts] [--time S] [--np N]
 #                         [--restitutions "0.3 0.6"]
@@ -45,6 +45,8 @@ e_fit=$(field packing_restitution)
 e_fit=$(awk -v e="$e_fit" 'BEGIN{printf "%.4f", e}')
 dt=$(field time_step_s)
 steps=$(field steps)
+echo "load average before the runs: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo
 echo "| ranks | pairwise e | density 0.005-0.045 m | spheres in slab / poured | wall time (s) |"
 echo "|---|---|---|---|---|"
 main=$(run "$work/fit" "$np")
@@ -58,9 +60,9 @@ fi
 for e in $restitutions; do
   "$bin" export "$params" --to "$target" --scene packing --packing-time "$time_s" \
     --packing-restitution "$e" -o "$work/e_$e" >/dev/null
-  row=$(run "$work/e_$e" "$np")
+  row=$(run "$work/e_$e" 1)
   IFS=, read -r d n total t _ <<<"$row"
-  echo "| $np | $e | $d | $n / $total | $t |"
+  echo "| 1 | $e | $d | $n / $total | $t |"
 done
 if [ "$np" != 1 ]; then
   echo

@@ -34,8 +34,8 @@ struct ExportFlags {
 };
 
 void PrintHuman(const ExportResult& r, const std::string& dir) {
-  std::printf("%s -> %s (%s), written for %s\n", r.law.c_str(), r.target.c_str(),
-              r.scene.c_str(), r.simulator_version.c_str());
+  std::printf("%s -> %s (%s), written for %s\n", r.law.c_str(), r.target.c_str(), r.scene.c_str(),
+              r.simulator_version.c_str());
   std::printf("native law: %s  [%s]\n", r.native_law.c_str(), r.kind.c_str());
   std::printf("mapping e error: %.3g (max over %.4g .. %.4g m/s)%s\n", r.max_e_error,
               r.speeds_m_s.front(), r.speeds_m_s.back(), r.exact ? ", exact" : "");
@@ -96,8 +96,7 @@ void RegisterExport(CLI::App& app) {
   sub->add_option("--to", flags->to, "target simulator: lammps, liggghts or yade")->required();
   sub->add_option("--scene", flags->scene,
                   "bounce (the fit's drop, default) or packing (seed paper's validation)");
-  sub->add_option("-o,--output", flags->out_dir, "output directory (must not exist)")
-      ->required();
+  sub->add_option("-o,--output", flags->out_dir, "output directory (must not exist)")->required();
   sub->add_flag("--json", flags->json, "the mapping as JSON on stdout");
   sub->add_flag("--force", flags->force,
                 "replace an existing directory's files; export a fit that did not converge");

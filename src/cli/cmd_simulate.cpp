@@ -108,10 +108,9 @@ void PrintHuman(const ContactLaw& law, const std::vector<double>& p, const Simul
 Scene ParamsScene(const SimulateFlags& f) {
   const SceneFlags& s = f.scene;
   const bool any_scene_flag = !s.scene_file.empty() || s.height_m || s.impact_speed_m_s ||
-                              s.diameter_m || s.density_kg_m3 || s.mass_kg ||
-                              !s.material.empty() || !s.drag.empty() || s.buoyancy ||
-                              s.contact_duration || s.g_m_s2 || !s.law.empty() ||
-                              !s.law_sets.empty() || !s.expression.empty();
+                              s.diameter_m || s.density_kg_m3 || s.mass_kg || !s.material.empty() ||
+                              !s.drag.empty() || s.buoyancy || s.contact_duration || s.g_m_s2 ||
+                              !s.law.empty() || !s.law_sets.empty() || !s.expression.empty();
   if (any_scene_flag) {
     throw Error(ErrorCode::kUsage,
                 "--params " + f.params_file +

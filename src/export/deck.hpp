@@ -13,7 +13,7 @@ namespace bouncecal::exporter {
 struct DeckInput {
   Mapping mapping;
   ExportOptions options;
-  std::string law_summary;     // "hertz-tsuji: k = ..., e = ..." for the header
+  std::string law_summary;  // "hertz-tsuji: k = ..., e = ..." for the header
   std::string params_path;
   double radius_m = 0.0;
   double mass_kg = 0.0;

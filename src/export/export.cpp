@@ -88,7 +88,8 @@ void CheckOutcome(const ParamFile& pf, const std::string& path, bool force) {
                   "overrides)");
 }
 
-void PrepareDirectory(const std::string& dir, bool force) {
+// Checks the output directory (run it before any work); true when it already exists.
+bool CheckDirectory(const std::string& dir, bool force) {
   std::error_code ec;
   if (fs::exists(dir, ec)) {
     if (!fs::is_directory(dir, ec)) {
@@ -98,13 +99,19 @@ void PrepareDirectory(const std::string& dir, bool force) {
       throw Error(ErrorCode::kOutput,
                   dir + ": output directory exists; not replaced (force replaces its files)");
     }
-    return;
+    return true;
   }
   const fs::path parent = fs::absolute(fs::path(dir)).parent_path();
   if (!fs::is_directory(parent, ec)) {
-    throw Error(ErrorCode::kOutput, dir + ": parent directory " + parent.string() +
-                                        " does not exist");
+    throw Error(ErrorCode::kOutput,
+                dir + ": parent directory " + parent.string() + " does not exist");
   }
+  return false;
+}
+
+void PrepareDirectory(const std::string& dir, bool force) {
+  if (CheckDirectory(dir, force)) return;
+  std::error_code ec;
   if (!fs::create_directory(dir, ec) || ec) {
     throw Error(ErrorCode::kOutput, dir + ": cannot create directory (" + ec.message() + ")");
   }
@@ -136,8 +143,7 @@ TimeStep ChooseTimeStep(const Mapping& m, const ContactBody& body, double g, dou
   const double v_lo = *std::min_element(m.speeds_m_s.begin(), m.speeds_m_s.end());
   const double v_hi = *std::max_element(m.speeds_m_s.begin(), m.speeds_m_s.end());
   TimeStep ts;
-  ts.contact_time_s =
-      std::min(model.ContactTimeAt(body, v_hi), model.ContactTimeAt(body, v_lo));
+  ts.contact_time_s = std::min(model.ContactTimeAt(body, v_hi), model.ContactTimeAt(body, v_lo));
   ts.dt_s = ts.contact_time_s / kStepsPerContactStart;
   for (int i = 0; i <= kMaxHalvings; ++i) {
     ts.e_error = MaxTimeStepError(model, body, {v_lo, v_hi}, ts.dt_s, g);
@@ -201,11 +207,11 @@ std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult&
   c.push_back("mapping: max |e_native - e_fit| = " + Num(m.max_e_error) +
               ", max contact-time error " + Num(m.max_contact_time_error) + " (relative), over " +
               Num(m.speeds_m_s.front()) + " .. " + Num(m.speeds_m_s.back()) + " m/s");
-  c.push_back("ball: R = " + Num(in.radius_m) + " m, m = " + Num(in.mass_kg) +
-              " kg (density " + Num(in.density_kg_m3) + " kg/m^3), rigid plane z = 0, g = " +
-              Num(in.g_m_s2) + " m/s^2");
-  c.push_back("time step " + Num(ts.dt_s) + " s = shortest contact time " +
-              Num(ts.contact_time_s) + " s / " + Num(ts.steps_per_contact) +
+  c.push_back("ball: R = " + Num(in.radius_m) + " m, m = " + Num(in.mass_kg) + " kg (density " +
+              Num(in.density_kg_m3) + " kg/m^3), rigid plane z = 0, g = " + Num(in.g_m_s2) +
+              " m/s^2");
+  c.push_back("time step " + Num(ts.dt_s) + " s = shortest contact time " + Num(ts.contact_time_s) +
+              " s / " + Num(ts.steps_per_contact) +
               " (halved from t_c/50 until the e error of the simulators' leapfrog, measured on "
               "16 contact phases at the slowest and fastest speed, is <= " +
               Num(in.options.time_step_e_error) + "): e error " + Num(ts.e_error));
@@ -435,6 +441,7 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   // Stage 1: the parameter file, its fit outcome, the replay scene, the output directory.
   const ParamFile pf = ReadParamFile(params_path);
   CheckOutcome(pf, params_path, options.force);
+  CheckDirectory(out_dir, options.force);
   const Replay replay = ReplayFromParamFile(pf, params_path);
   const Scene& scene = replay.scene;
   const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
@@ -485,7 +492,6 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.max_contact_time_error = m.max_contact_time_error;
   r.coefficients = m.coefficients;
   r.speeds_m_s = speeds;
-  PrepareDirectory(out_dir, options.force);
 
   // Stage 3: time step and run length.
   DeckInput in;
@@ -546,15 +552,14 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   const bool bounce = options.scene == ExportScene::kBounce;
   switch (options.target) {
     case ExportTarget::kLammps:
-      files.push_back(bounce ? std::pair{std::string("in.bounce"), exporter::LammpsBounceDeck(in)}
-                             : std::pair{std::string("in.packing"),
-                                         exporter::LammpsPackingDeck(in)});
+      files.push_back(bounce
+                          ? std::pair{std::string("in.bounce"), exporter::LammpsBounceDeck(in)}
+                          : std::pair{std::string("in.packing"), exporter::LammpsPackingDeck(in)});
       break;
     case ExportTarget::kLiggghts:
-      files.push_back(bounce ? std::pair{std::string("in.bounce"),
-                                         exporter::LiggghtsBounceDeck(in)}
-                             : std::pair{std::string("in.packing"),
-                                         exporter::LiggghtsPackingDeck(in)});
+      files.push_back(
+          bounce ? std::pair{std::string("in.bounce"), exporter::LiggghtsBounceDeck(in)}
+                 : std::pair{std::string("in.packing"), exporter::LiggghtsPackingDeck(in)});
       break;
     case ExportTarget::kYade:
       files.push_back({"bounce.py", exporter::YadeBounceScript(in)});
@@ -563,14 +568,15 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   files.push_back({"run.sh", exporter::RunScript(in)});
   files.push_back(bounce ? std::pair{std::string("impacts.awk"), exporter::ImpactsAwk()}
                          : std::pair{std::string("packing.awk"), exporter::PackingAwk()});
+  PrepareDirectory(out_dir, options.force);  // only now: a refusal leaves nothing behind
   for (const auto& f : files) r.files.push_back(f.first);
   r.files.push_back("mapping.json");
   const WriteOptions wo{.force = true, .inputs = {params_path}};
   for (const auto& [name, text] : files) {
     WriteFileAtomically((fs::path(out_dir) / name).string(), text, wo);
   }
-  fs::permissions(fs::path(out_dir) / "run.sh", fs::perms::owner_exec | fs::perms::group_exec |
-                                                    fs::perms::others_exec,
+  fs::permissions(fs::path(out_dir) / "run.sh",
+                  fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
   WriteFileAtomically((fs::path(out_dir) / "mapping.json").string(),
                       ExportResultJson(r).dump(2) + "\n", wo);

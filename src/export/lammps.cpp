@@ -4,7 +4,8 @@
 //   fix wall/gran granular hooke kn eta_n0 damping velocity    F = kn d - eta_n0 v_n
 //   fix wall/gran granular hertz kn eta_n0 damping viscoelastic F = kn a d - eta_n0 a m* v_n,
 //                                                             a = sqrt(R d), m* = m (wall)
-//   fix wall/gran granular hertz kn e damping tsuji           F = kn a d - alpha(e) sqrt(m* kn a) v_n
+//   fix wall/gran granular hertz kn e damping tsuji           F = kn a d - alpha(e) sqrt(m* kn a)
+//   v_n
 //                                                             with LAMMPS' alpha(e) polynomial
 //   pair_style gran/hooke/history kn kt gamma_n gamma_t xmu dampflag   F = kn d - m* gamma_n v_n
 // Units: `units si`. The wall is the plane z = 0; the sphere's mass is density * pi d^3 / 6.
@@ -86,21 +87,23 @@ std::string LammpsPackingDeck(const DeckInput& in) {
      << "boundary f f f\n"
      << "newton off\n"
      << "comm_modify vel yes\n"
+     << "# The pile settles at the bottom: split the ranks across x and y, never along z.\n"
+     << "processors * * 1\n"
      << "region box block -0.105 0.105 -0.105 0.105 -0.001 0.25 units box\n"
      << "create_box 1 box\n"
      << "neighbor 0.002 bin\n"
      << "neigh_modify delay 0\n"
      << "# gamma_n (1/s): " << Num(gn_pp) << " between spheres, " << Num(gn_pw)
      << " against walls, both giving e = " << Num(in.packing_restitution) << "\n"
-     << "pair_style gran/hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pp)
-     << " " << Num(0.5 * gn_pp) << " " << Num(mu) << " 1\n"
+     << "pair_style gran/hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pp) << " "
+     << Num(0.5 * gn_pp) << " " << Num(mu) << " 1\n"
      << "pair_coeff * *\n"
      << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0 0 -1\n"
      << "fix integrate all nve/sphere\n"
-     << "fix floor all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " "
-     << Num(gn_pw) << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zplane 0.0 NULL\n"
-     << "fix side all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " "
-     << Num(gn_pw) << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zcylinder 0.1\n"
+     << "fix floor all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pw)
+     << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zplane 0.0 NULL\n"
+     << "fix side all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pw)
+     << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zcylinder 0.1\n"
      << "# The hopper: the spheres start at rest on a jittered lattice (spacing 1.25 d) between\n"
      << "# 5 and 20 cm and fall together (fix pour of this version inserts one batch only).\n"
      << "region hopper cylinder z 0 0 0.094 0.05 0.2 units box\n"

@@ -3,8 +3,9 @@
 // Keywords (LIGGGHTS-PUBLIC docs of gran model hooke/stiffness, hertz, hertz/stiffness; the
 // per-type-pair coefficients are `fix property/global NAME peratomtypepair 2 ...`):
 //   model hooke/stiffness:  F = k_n d - m* gamman v_n        (absolute_damping off: gamman 1/s)
-//   model hertz/stiffness:  F = k_n sqrt(R d) d - gamman sqrt(R d) m* v_n   (k_n Pa, gamman 1/(m s))
-//   model hertz:            F = 4/3 Y* sqrt(R d) d - 2 sqrt(5/6) beta sqrt(2 Y* sqrt(R d) m*) v_n,
+//   model hertz/stiffness:  F = k_n sqrt(R d) d - gamman sqrt(R d) m* v_n   (k_n Pa, gamman 1/(m
+//   s)) model hertz:            F = 4/3 Y* sqrt(R d) d - 2 sqrt(5/6) beta sqrt(2 Y* sqrt(R d) m*)
+//   v_n,
 //                           beta = ln e / sqrt(ln^2 e + pi^2), Y* from youngsModulus and
 //                           poissonsRatio of both types: Tsuji's form with alpha = sqrt(5)(-beta)
 // Against a wall (fix wall/gran ... primitive) R* = R and m* = m. `units si` needs
@@ -44,8 +45,8 @@ LiggghtsModel ModelOf(const DeckInput& in) {
   } else if (m.form == NativeForm::kHertzViscoelastic) {
     p << "fix k_n all property/global kn peratomtypepair 2 " << Pair4(c.at("k_n_pa")) << "\n"
       << "fix k_t all property/global kt peratomtypepair 2 " << Pair4(0.0) << "\n"
-      << "fix gamma_n all property/global gamman peratomtypepair 2 "
-      << Pair4(c.at("gamman_1_m_s")) << "\n"
+      << "fix gamma_n all property/global gamman peratomtypepair 2 " << Pair4(c.at("gamman_1_m_s"))
+      << "\n"
       << "fix gamma_t all property/global gammat peratomtypepair 2 " << Pair4(0.0) << "\n";
     out.model = "model hertz/stiffness tangential no_history";
   } else {
@@ -54,8 +55,8 @@ LiggghtsModel ModelOf(const DeckInput& in) {
     const double y = 2.0 * (1.0 - nu * nu) * c.at("Yeff_pa");
     p << "fix m_youngs all property/global youngsModulus peratomtype " << Num(y) << " " << Num(y)
       << "\n"
-      << "fix m_poisson all property/global poissonsRatio peratomtype " << Num(nu) << " "
-      << Num(nu) << "\n"
+      << "fix m_poisson all property/global poissonsRatio peratomtype " << Num(nu) << " " << Num(nu)
+      << "\n"
       << "fix m_restitution all property/global coefficientRestitution peratomtypepair 2 "
       << Pair4(c.at("coefficientRestitution")) << "\n";
     out.model = "model hertz tangential no_history";
@@ -128,18 +129,19 @@ std::string LiggghtsPackingDeck(const DeckInput& in) {
      << "newton off\n"
      << "communicate single vel yes\n"
      << "units si\n"
+     << "# The pile settles at the bottom: split the ranks across x and y, never along z.\n"
+     << "processors * * 1\n"
      << "region box block -0.105 0.105 -0.105 0.105 -0.001 0.25 units box\n"
      << "create_box 2 box\n"
      << "neighbor 0.002 bin\n"
      << "neigh_modify delay 0\n"
      << "fix k_n all property/global kn peratomtypepair 2 " << pair(kn, kn) << "\n"
      << "fix k_t all property/global kt peratomtypepair 2 " << pair(kn, kn) << "\n"
-     << "fix gamma_n all property/global gamman peratomtypepair 2 " << pair(gn_pp, gn_pw)
-     << "\n"
+     << "fix gamma_n all property/global gamman peratomtypepair 2 " << pair(gn_pp, gn_pw) << "\n"
      << "fix gamma_t all property/global gammat peratomtypepair 2 "
      << pair(0.5 * gn_pp, 0.5 * gn_pw) << "\n"
-     << "fix m_friction all property/global coefficientFriction peratomtypepair 2 "
-     << pair(mu, mu) << "\n"
+     << "fix m_friction all property/global coefficientFriction peratomtypepair 2 " << pair(mu, mu)
+     << "\n"
      << "pair_style gran model hooke/stiffness tangential history\n"
      << "pair_coeff * *\n"
      << "timestep " << Num(in.time_step_s) << "\n"

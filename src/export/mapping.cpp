@@ -118,6 +118,15 @@ void DescribeNative(const Fit& fit, Mapping* m) {
                           " is outside LAMMPS' alpha(e) polynomial range [0, 1.2728]");
         }
         co["e_input"] = SolveDecreasing(LammpsTsujiPolynomial, a, 0.0, 1.0);
+        const double e_fit = fit.e.front();
+        const double e_naive =
+            NativeModel(NativeForm::kHertzTsuji, false, k, LammpsTsujiPolynomial(e_fit))
+                .RestitutionAt(fit.body, 1.0);
+        m->notes.push_back(
+            "LAMMPS' damping tsuji turns e into alpha with a polynomial that is not "
+            "Tsuji's alpha(e): e = " +
+            Num(co["e_input"]) + " is written so that alpha = " + Num(a) + " (e = " + Num(e_fit) +
+            " written as it is would bounce at " + Num(e_naive) + ")");
         m->native_law = "fix wall/gran granular hertz kn e damping tsuji";
       }
       break;
@@ -147,6 +156,9 @@ void DescribeNative(const Fit& fit, Mapping* m) {
         // materials, kn = 1/(1/kn1 + 1/kn2): both materials carry 2k and 2c.
         co["kn_n_m"] = 2.0 * k;
         co["cn_n_s_m"] = 2.0 * m->damping;
+        m->notes.push_back(
+            "Yade combines the two materials' kn, cn in series: each carries 2k, 2c "
+            "(the tc/en form would use the reduced mass m/2 against a wall)");
         m->native_law = "ViscElMat(kn, cn) + Law2_ScGeom_ViscElPhys_Basic";
       } else {
         // MindlinPhys: Kno = 4/3 E* sqrt(R') with R' = R/2 against a wall (the wall's radius
@@ -154,8 +166,12 @@ void DescribeNative(const Fit& fit, Mapping* m) {
         // sqrt(d): c_n = 2 betan sqrt(m 3/2 Kno) d^1/4, i.e. alpha = sqrt(6) betan.
         co["young_eff_pa"] = 0.75 * k / std::sqrt(0.5 * R);
         co["betan"] = m->damping / std::sqrt(6.0);
-        m->native_law = "FrictMat + Ip2_FrictMat_FrictMat_MindlinPhys(betan) + "
-                        "Law2_ScGeom_MindlinPhys_Mindlin";
+        m->notes.push_back(
+            "Yade's MindlinPhys takes R/2 against a wall: E* raised by sqrt(2) so "
+            "that Kno = k");
+        m->native_law =
+            "FrictMat + Ip2_FrictMat_FrictMat_MindlinPhys(betan) + "
+            "Law2_ScGeom_MindlinPhys_Mindlin";
       }
       break;
   }
@@ -209,8 +225,10 @@ void MapHertzTsuji(const Fit& fit, Mapping* m) {
   m->damping = TsujiAlphaForRestitution(fit.Param("e"), m->clip);
   m->kind = m->clip ? "matched" : "exact";
   if (m->clip) {
-    m->notes.push_back("Yade clips the attractive end of the contact force: alpha re-solved "
-                       "under the F = 0 end for the same e = " + Num(fit.Param("e")));
+    m->notes.push_back(
+        "Yade clips the attractive end of the contact force: alpha re-solved "
+        "under the F = 0 end for the same e = " +
+        Num(fit.Param("e")));
   }
 }
 
@@ -230,9 +248,11 @@ void MapHertzViscoelastic(const Fit& fit, Mapping* m) {
   const double e_mid = 0.5 * (fit.EMin() + fit.EMax());
   m->damping = TsujiAlphaForRestitution(e_mid, true);
   m->kind = "approximated";
-  m->notes.push_back("yade has no viscoelastic Hertz damping (d^1/2 d'): Hertz-Mindlin with the "
-                     "constant e = " + Num(e_mid) + " closest to the fitted e(v) = " +
-                     Num(fit.EMin()) + " .. " + Num(fit.EMax()) + " over the measured speeds");
+  m->notes.push_back(
+      "yade has no viscoelastic Hertz damping (d^1/2 d'): Hertz-Mindlin with the "
+      "constant e = " +
+      Num(e_mid) + " closest to the fitted e(v) = " + Num(fit.EMin()) + " .. " + Num(fit.EMax()) +
+      " over the measured speeds");
 }
 
 // Any other law: a constant-e Hertz law (the target's Tsuji form) with the middle e of the
@@ -334,13 +354,15 @@ Mapping MapLaw(const Scene& scene, const std::vector<double>& speeds_m_s, Export
   if (name == "linear-dashpot" || name == "linear-dashpot-force-zero") {
     MapLinearDashpot(fit, name == "linear-dashpot-force-zero", &m);
   } else if (name == "walton-braun") {
-    MapConstantLinear(fit, "the seed law's (1 +- gamma) k branches are not native in " +
-                               std::string(ExportTargetName(target)),
+    MapConstantLinear(fit,
+                      "the seed law's (1 +- gamma) k branches are not native in " +
+                          std::string(ExportTargetName(target)),
                       &m);
   } else if (name == "walton-braun-hysteretic") {
-    MapConstantLinear(fit, "Walton-Braun hysteresis with constant k2 is not native in " +
-                               std::string(ExportTargetName(target)) +
-                               " (LIGGGHTS hooke/hysteresis lets k2 grow with the overlap)",
+    MapConstantLinear(fit,
+                      "Walton-Braun hysteresis with constant k2 is not native in " +
+                          std::string(ExportTargetName(target)) +
+                          " (LIGGGHTS hooke/hysteresis lets k2 grow with the overlap)",
                       &m);
   } else if (name == "hertz-tsuji") {
     MapHertzTsuji(fit, &m);

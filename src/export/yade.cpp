@@ -29,8 +29,8 @@ std::string YadeBounceScript(const DeckInput& in) {
      << "steps = int(os.environ.get('BOUNCECAL_STEPS', '" << in.steps << "'))\n";
   if (m.form == NativeForm::kLinear) {
     os << "mat = O.materials.append(ViscElMat(kn=" << Num(c.at("kn_n_m"))
-       << ", cn=" << Num(c.at("cn_n_s_m")) << ", ks=0, cs=0, frictionAngle=0, density="
-       << Num(in.density_kg_m3) << "))\n";
+       << ", cn=" << Num(c.at("cn_n_s_m"))
+       << ", ks=0, cs=0, frictionAngle=0, density=" << Num(in.density_kg_m3) << "))\n";
   } else {
     // Same material on both sides: E* = E / (2 (1 - nu^2)).
     const double nu = in.poisson_ratio;

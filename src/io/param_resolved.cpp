@@ -182,7 +182,8 @@ Replay ReplayFromParamFile(const ParamFile& file, const std::string& path) {
     CheckResolved(res, "environment", "g_m_s2", s.environment.g_m_s2, path);
   }
   // Every constant explicit: the replay no longer depends on the preset tables.
-  const double eb = r.scene.ball.ResolvedYoungsModulusPa(), nb = r.scene.ball.ResolvedPoissonRatio();
+  const double eb = r.scene.ball.ResolvedYoungsModulusPa(),
+               nb = r.scene.ball.ResolvedPoissonRatio();
   if (std::isfinite(eb) && std::isfinite(nb)) {
     r.scene.ball.youngs_modulus_pa = eb;
     r.scene.ball.poisson_ratio = nb;

@@ -70,8 +70,8 @@ struct ExportResult {
   double steps_per_contact = 0.0;  // shortest contact time / time step
   double time_step_e_error = 0.0;  // measured by FixedStepRestitution at v_min and v_max
   long steps = 0;
-  double run_time_s = 0.0;  // simulated time
-  int trace_every = 0;      // steps between trace samples
+  double run_time_s = 0.0;           // simulated time
+  int trace_every = 0;               // steps between trace samples
   double packing_restitution = 0.0;  // packing: the pairwise e used (0 for bounce)
   std::vector<double> speeds_m_s;
   std::vector<std::string> notes;

@@ -38,18 +38,18 @@ const char* VerifiedSimulatorVersion(ExportTarget target);
 
 struct Mapping {
   ExportTarget target = ExportTarget::kLammps;
-  std::string law;            // the fitted bouncecal law
-  std::string native_law;     // the simulator's keywords, e.g. "granular hertz ... damping tsuji"
+  std::string law;         // the fitted bouncecal law
+  std::string native_law;  // the simulator's keywords, e.g. "granular hertz ... damping tsuji"
   NativeForm form = NativeForm::kLinear;
-  bool clip = false;          // the simulator clips attractive normal forces
-  double stiffness = 0.0;     // native k, bouncecal units (N/m or N/m^1.5)
-  double damping = 0.0;       // native c (N*s/m), alpha (1) or A (s)
+  bool clip = false;                           // the simulator clips attractive normal forces
+  double stiffness = 0.0;                      // native k, bouncecal units (N/m or N/m^1.5)
+  double damping = 0.0;                        // native c (N*s/m), alpha (1) or A (s)
   std::map<std::string, double> coefficients;  // the numbers written into the deck, by name
-  std::string kind;           // "exact", "matched" or "approximated"
+  std::string kind;                            // "exact", "matched" or "approximated"
   bool exact = false;
-  double max_e_error = 0.0;          // max |e_native(v) - e_fit(v)| over the speeds
+  double max_e_error = 0.0;             // max |e_native(v) - e_fit(v)| over the speeds
   double max_contact_time_error = 0.0;  // max relative |t_c native - t_c fit|
-  std::vector<double> speeds_m_s;    // where it was measured
+  std::vector<double> speeds_m_s;       // where it was measured
   std::vector<std::string> notes;
 
   NativeModel Model() const { return NativeModel(form, clip, stiffness, damping); }

@@ -50,11 +50,11 @@ nlohmann::json ResolvedJson(const Scene& scene, const std::vector<double>& speed
 nlohmann::json ResolvedJson(const Calibration& calibration);
 
 struct Replay {
-  Scene scene;                      // law with parameters, drop, every constant explicit
-  std::vector<double> speeds_m_s;   // the measured speed range (e_of_v speeds); may be empty
-  double v_min_m_s = 0.0;           // measured impact speeds (fit.v_min/v_max), 0 if absent
+  Scene scene;                     // law with parameters, drop, every constant explicit
+  std::vector<double> speeds_m_s;  // the measured speed range (e_of_v speeds); may be empty
+  double v_min_m_s = 0.0;          // measured impact speeds (fit.v_min/v_max), 0 if absent
   double v_max_m_s = 0.0;
-  std::string drop_from;            // "recording 0 fit" or "scene"
+  std::string drop_from;  // "recording 0 fit" or "scene"
 };
 
 // Throws Error(kBadParameter) naming the file and key for a missing or unreadable scene, a

@@ -227,4 +227,41 @@ INSTANTIATE_TEST_SUITE_P(Integration, ExportRun, ::testing::ValuesIn(Cases()),
                            return name;
                          });
 
+// The packing deck (seed paper's validation scene) runs under MPI with 2 ranks; 2000 steps only
+// (the full run is tools/packing.sh): every sphere is created and the density line is printed.
+class PackingRun : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(PackingRun, DeckRunsUnderTwoMpiRanks) {
+  const std::string target = GetParam();
+  const CommandResult which =
+      RunCommand("sh", std::string("-c 'command -v ") + Program(target) + " && command -v mpirun'");
+  ASSERT_EQ(which.exit_code, 0) << Program(target) << " or mpirun is not on PATH: install them "
+                                << "with tools/install-integration-deps.sh (apt-get install -y "
+                                << Package(target) << " openmpi-bin)";
+  ScratchDir dir("bc_pack");
+  const std::string wav = dir / "rec.wav", params = dir / "params.json", out = dir / "deck";
+  CommandResult r = RunCommand(kBin, "synth --law walton-braun --set gamma=0.2 --seed 3 -o " + wav);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = RunCommand(kBin, "calibrate " + wav + " --law walton-braun -o " + params);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = RunCommand(kBin, "export " + params + " --to " + target + " --scene packing -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = RunCommand("env", "NP=2 " + out + "/run.sh -var steps 2000");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  // density,spheres_in_slab,spheres,wall_time_s,ranks
+  const std::string last = r.out.substr(r.out.rfind('\n', r.out.size() - 2) + 1);
+  double density = -1.0;
+  int in_slab = -1, spheres = -1, ranks = -1;
+  double wall = -1.0;
+  ASSERT_EQ(
+      std::sscanf(last.c_str(), "%lf,%d,%d,%lf,%d", &density, &in_slab, &spheres, &wall, &ranks), 5)
+      << r.out;
+  EXPECT_EQ(spheres, 2000);
+  EXPECT_EQ(ranks, 2);
+  EXPECT_GE(density, 0.0);  // still falling after 2000 steps: the slab may be empty
+  EXPECT_LT(density, 0.75);
+}
+
+INSTANTIATE_TEST_SUITE_P(Integration, PackingRun, ::testing::Values("lammps", "liggghts"));
+
 }  // namespace

@@ -436,5 +436,39 @@ TEST(ExportCli, TimeStepIsChosenFromTheContactTimeAndStatesItsError) {
   EXPECT_NE(deck.find("e error"), std::string::npos);
 }
 
+TEST(ExportCli, PackingDeckDampsEveryPairToTheFitsRestitution) {
+  ScratchDir dir;
+  const std::string params = WriteFit(dir, "walton-braun", {{"gamma", 0.3}}, "wb.json");
+  const double e = std::sqrt(0.7 / 1.3);  // seed 002 eq. 23
+  const CommandResult r = RunCommand(
+      kBin, "export " + params + " --to lammps --scene packing -o " + (dir / "p") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NEAR(json::parse(r.out)["packing_restitution"].get<double>(), e, 1e-9);
+  // gran/hooke/history damps with m* gamma_n: e = exp(-pi zeta / sqrt(1 - zeta^2)) with
+  // zeta = gamma_n sqrt(m*) / (2 sqrt(kn)), m* = m/2 between spheres, m at the walls.
+  const std::string deck = Slurp(dir / "p/in.packing");
+  const double m = 7800.0 * M_PI * 1e-6 / 6.0, kn = 1e7;
+  auto e_of = [&](double gamma_n, double m_eff) {
+    const double zeta = gamma_n * std::sqrt(m_eff) / (2.0 * std::sqrt(kn));
+    return std::exp(-M_PI * zeta / std::sqrt(1.0 - zeta * zeta));
+  };
+  double g_pair = 0.0, g_wall = 0.0;
+  ASSERT_EQ(std::sscanf(deck.substr(deck.find("pair_style gran/hooke/history")).c_str(),
+                        "pair_style gran/hooke/history %*g %*g %lg", &g_pair),
+            1);
+  ASSERT_EQ(std::sscanf(deck.substr(deck.find("fix floor all wall/gran hooke/history")).c_str(),
+                        "fix floor all wall/gran hooke/history %*g %*g %lg", &g_wall),
+            1);
+  EXPECT_NEAR(e_of(g_pair, 0.5 * m), e, 1e-9);
+  EXPECT_NEAR(e_of(g_wall, m), e, 1e-9);
+  EXPECT_NE(deck.find("processors * * 1"), std::string::npos);
+  EXPECT_NE(Slurp(dir / "p/run.sh").find("mpirun"), std::string::npos);
+  // Yade has no packing deck.
+  const CommandResult y =
+      RunCommand(kBin, "export " + params + " --to yade --scene packing -o " + (dir / "y"));
+  EXPECT_EQ(y.exit_code, 2);
+  EXPECT_NE(y.err.find("lammps and liggghts only"), std::string::npos) << y.err;
+}
+
 }  // namespace
 }  // namespace bouncecal

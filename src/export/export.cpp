@@ -294,6 +294,10 @@ std::string RunScript(const DeckInput& in) {
      << ")\" >&2\n"
      << "  exit 127\n"
      << "fi\n";
+  // LIGGGHTS 3.8.0 crashes with `-screen none` (insert/pack prints to the missing screen):
+  // its screen output goes to a file instead.
+  const std::string screen =
+      t == ExportTarget::kLiggghts ? std::string("screen.") + prog : std::string("none");
   if (packing) {
     os << "command -v mpirun >/dev/null 2>&1 || { echo \"run.sh: mpirun not found on PATH "
           "(Debian 12: apt-get install -y openmpi-bin)\" >&2; exit 127; }\n"
@@ -302,7 +306,7 @@ std::string RunScript(const DeckInput& in) {
        << "if [ \"$(id -u)\" = 0 ]; then MPIFLAGS=\"$MPIFLAGS --allow-run-as-root\"; fi\n"
        << "start=$(date +%s.%N)\n"
        << "if ! mpirun $MPIFLAGS -np \"${NP:-1}\" " << prog
-       << " -in in.packing -log log.packing -screen none \"$@\" </dev/null; then\n"
+       << " -in in.packing -log log.packing -screen " << screen << " \"$@\" </dev/null; then\n"
        << "  echo \"run.sh: " << prog << " failed, see log.packing\" >&2\n"
        << "  exit 1\n"
        << "fi\n"
@@ -320,7 +324,8 @@ std::string RunScript(const DeckInput& in) {
     os << "if ! " << prog << " -n -x bounce.py \"$@\" >yade.log 2>&1 </dev/null; then\n"
        << "  echo \"run.sh: yade failed, see yade.log:\" >&2; tail -5 yade.log >&2\n";
   } else {
-    os << "if ! " << prog << " -in in.bounce -log log." << prog << " -screen none \"$@\""
+    os << "if ! " << prog << " -in in.bounce -log log." << prog << " -screen " << screen
+       << " \"$@\""
        << " </dev/null; then\n"
        << "  echo \"run.sh: " << prog << " failed, see log." << prog << ":\" >&2; tail -5 log."
        << prog << " >&2\n";

@@ -42,6 +42,7 @@
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
 
@@ -221,6 +222,7 @@ std::vector<TruthOnset> TruthFor(const SynthSpec& spec, const Recording& rec, in
 
 struct RunOut {
   std::vector<double> t, sigma;
+  std::vector<Sequence> sequences;
   double time_s = 0;
   int channel = 0;
   bool failed = false;
@@ -236,6 +238,7 @@ RunOut RunBouncecal(const Audio& a, const DetectOptions& o, int reps) {
       best = std::min(best, ThreadCpuS() - t0);
       if (k == 0) {
         r.channel = std::max(res.channel, 0);
+        r.sequences = res.sequences;
         for (const Sequence& s : res.sequences)
           for (const Impact& i : s.impacts) {
             r.t.push_back(i.time_s);
@@ -250,6 +253,33 @@ RunOut RunBouncecal(const Audio& a, const DetectOptions& o, int reps) {
   }
   r.time_s = best;
   return r;
+}
+
+// Per-impact timing diagnostics (--dump): each sequence re-timed on the channel it came from,
+// the model's parts beside the raw error against the nearest true onset (within 1 ms).
+void DumpTiming(const std::string& path, const Corpus& c, const RunOut& r) {
+  std::FILE* f = std::fopen(path.c_str(), "a");
+  if (!f) return;
+  const auto& x = c.audio.channels[static_cast<std::size_t>(r.channel)];
+  const auto& truth = c.truth_per_channel[static_cast<std::size_t>(r.channel)];
+  for (std::size_t q = 0; q < r.sequences.size(); ++q) {
+    Sequence s = r.sequences[q];
+    const TimingResult tr = TimeSequence(x, c.audio.info.sample_rate_hz, &s);
+    for (std::size_t k = 0; k < s.impacts.size(); ++k) {
+      const Impact& im = s.impacts[k];
+      const TruthOnset* best = nullptr;
+      for (const TruthOnset& t : truth)
+        if (!best || std::fabs(t.t - im.time_s) < std::fabs(best->t - im.time_s)) best = &t;
+      const bool matched = best && std::fabs(best->t - im.time_s) <= 1e-3;
+      const TimingDetail& d = tr.detail[k];
+      std::fprintf(f, "%s,%d,%zu,%zu,%.9e,%.4e,%d,%.4f,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.2f,%d,%.0f\n",
+                   c.preset.c_str(), c.seed, q, k, matched ? im.time_s - best->t : NAN, im.sigma_s,
+                   d.by_template ? 1 : 0, d.ncc, d.sigma_noise, d.sigma_shape, d.sigma_ambiguity, d.level_ratio, 0.0, d.noise_rms,
+                   im.amplitude, im.snr_db, matched ? (best->eligible ? 1 : 0) : -1,
+                   c.audio.info.sample_rate_hz);
+    }
+  }
+  std::fclose(f);
 }
 
 bool HaveAubio() { return std::system("command -v aubioonset > /dev/null 2>&1") == 0; }
@@ -298,7 +328,8 @@ void PrintAccuracyRow(const std::string& preset, const std::string& who, const M
 int main(int argc, char** argv) {
   int seeds = 5;
   bool use_aubio = true;
-  std::string keep;
+  bool quick = false;
+  std::string keep, dump;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--seeds" && i + 1 < argc) {
@@ -307,8 +338,13 @@ int main(int argc, char** argv) {
       use_aubio = false;
     } else if (a == "--keep" && i + 1 < argc) {
       keep = argv[++i];
+    } else if (a == "--quick") {
+      quick = true;
+      use_aubio = false;
+    } else if (a == "--dump" && i + 1 < argc) {
+      dump = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: bench_detect [--seeds N] [--no-aubio] [--keep DIR]\n");
+      std::fprintf(stderr, "usage: bench_detect [--seeds N] [--no-aubio] [--quick] [--keep DIR] [--dump CSV]\n");
       return 2;
     }
   }
@@ -322,6 +358,18 @@ int main(int argc, char** argv) {
                      ? fs::temp_directory_path() / ("bench_detect_" + std::to_string(::getpid()))
                      : fs::path(keep);
   fs::create_directories(dir);
+  if (!dump.empty()) {
+    std::FILE* f = std::fopen(dump.c_str(), "w");
+    if (!f) {
+      std::fprintf(stderr, "bench_detect: cannot write %s\n", dump.c_str());
+      return 2;
+    }
+    std::fputs("preset,seed,sequence,k,err_s,sigma_s,by_template,ncc,sigma_noise,sigma_mismatch,"
+               "sigma_ambiguity,level_ratio,attack_s,noise_rms,amplitude,snr_db,eligible,rate_hz\n",
+               f);
+    std::fclose(f);
+  }
+  const std::string& dump_file = dump;
 
   const std::vector<std::string> presets = {"steel-copper", "glass-glass", "pingpong-wood",
                                             "rubber-wood",  "phone-16k",   "two-drops"};
@@ -363,6 +411,7 @@ int main(int argc, char** argv) {
     m.time_s = r.time_s;
     m.audio_s = c.audio.info.duration_s();
     bc[c.preset].Add(m);
+    if (!dump_file.empty()) DumpTiming(dump_file, c, r);
     bc_time += r.time_s;
     audio_total += m.audio_s;
     if (aubio) {
@@ -445,6 +494,10 @@ int main(int argc, char** argv) {
                 Quantile(au_ratio, 0.5));
   }
 
+  if (quick) {
+    if (keep.empty()) fs::remove_all(dir);
+    return 0;
+  }
   // 4. Accuracy vs cost of the detection settings (first seed of every preset).
   std::printf("\n## Accuracy vs cost of detection settings (1 seed per preset)\n\n");
   std::printf(

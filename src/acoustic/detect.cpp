@@ -7,7 +7,9 @@
 #include <cstdio>
 
 #include "bouncecal/acoustic/onsets.hpp"
+#include "bouncecal/acoustic/plausibility.hpp"
 #include "bouncecal/acoustic/sequence.hpp"
+#include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
 
 namespace bouncecal {
@@ -111,6 +113,163 @@ void ExtendByTemplate(const OnsetResult& onsets, const std::vector<float>& x, do
   }
 }
 
+// When auto had a real choice and the signals disagree on the main sequence, say which was
+// used and why (the scores of all are in DetectionResult::channel_scores).
+void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
+  if (r.channel_scores.size() < 2) return;
+  auto name = [](int c) { return c >= 0 ? "channel " + std::to_string(c) : std::string("the mix"); };
+  const ChannelScore* used = nullptr;
+  for (const ChannelScore& c : r.channel_scores)
+    if (c.channel == r.channel) used = &c;
+  if (!used) return;
+  bool disagree = false;
+  std::string others;
+  for (const ChannelScore& c : r.channel_scores) {
+    if (&c == used) continue;
+    others += (others.empty() ? "" : ", ") + name(c.channel) + " " + Fmt("%.1f", c.score) + " (" +
+              std::to_string(c.impacts) + " impacts)";
+    disagree = disagree || c.impacts == 0 ||
+               std::fabs(c.first_impact_s - used->first_impact_s) > 0.005 ||
+               std::abs(c.impacts - used->impacts) > std::max(2, used->impacts / 10);
+  }
+  if (!disagree) return;
+  out->push_back({"channel_choice",
+                  "the channels disagree; " + name(r.channel) + " was used: its main sequence scores " +
+                      Fmt("%.1f", used->score) + " (" + std::to_string(used->impacts) +
+                      " impacts from " + Fmt("%.4f", used->first_impact_s) + " s), " + others +
+                      " (score = sum of the members' tracker weights)",
+                  -1});
+}
+
+// Warnings of one sequence's flags (missed and irregular intervals).
+void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) {
+  for (std::size_t s = 0; s < seqs.size(); ++s) {
+    const Sequence& q = seqs[s];
+    for (int k : q.missed_after)
+      out->push_back(
+          {"missed_impact",
+           "sequence " + std::to_string(s) + ": an impact seems missing after impact " +
+               std::to_string(k) +
+               " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
+               " s); its interval is about two expected ones",
+           k});
+    for (int k : q.irregular_after) {
+      const auto& im = q.impacts;
+      const std::size_t j = static_cast<std::size_t>(k);
+      const double d = im[j + 1].time_s - im[j].time_s;
+      const double d0 = j > 0 ? im[j].time_s - im[j - 1].time_s : 0.0;
+      out->push_back({"irregular_interval",
+                      "sequence " + std::to_string(s) + ": the interval after impact " +
+                          std::to_string(k) + " (t = " + Fmt("%.4f", im[j].time_s) + " s: " +
+                          Fmt("%.4f", d) + " s" +
+                          (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
+                          ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
+                          "sequence continues through it",
+                      k});
+    }
+  }
+}
+
+// Everything one candidate signal yields.
+struct SignalDetection {
+  std::vector<Impact> candidates;
+  std::vector<Sequence> sequences;
+  std::vector<Warning> warnings;
+  int hop_samples = 0;
+  double score = 0.0;
+  std::string failure;  // why no sequence (empty when there is one)
+};
+
+double SequenceScore(const Sequence& q) {
+  double s = 0.0;
+  for (const Impact& i : q.impacts) s += CandidateWeight(i);
+  return s;
+}
+
+int LongestSequence(const std::vector<Sequence>& seqs) {
+  int best = seqs.empty() ? -1 : 0;
+  for (std::size_t s = 1; s < seqs.size(); ++s)
+    if (seqs[s].impacts.size() > seqs[static_cast<std::size_t>(best)].impacts.size())
+      best = static_cast<int>(s);
+  return best;
+}
+
+// Stage list for one signal: onsets -> tracking -> guided search -> timing -> plausibility ->
+// re-timing. `clip_peak`: the level at which this signal is clipped (0: not clipped).
+SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double clip_peak,
+                               const DetectOptions& options) {
+  SignalDetection out;
+  const double duration_s = static_cast<double>(x.size()) / rate_hz;
+  OnsetOptions oo;
+  oo.hop_s = options.hop_s;
+  oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
+  oo.lpc_order = options.lpc_order;
+  const OnsetDetector detector(oo, rate_hz);
+  const OnsetResult onsets = detector.Detect(x);
+  out.hop_samples = detector.hop_samples();
+  out.candidates = onsets.onsets;
+  for (Impact& imp : out.candidates) imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
+
+  TrackOptions to;
+  to.min_interval_s = options.min_interval_s;
+  to.min_sequence_impacts = options.min_sequence_impacts;
+  out.sequences = TrackSequences(out.candidates, duration_s, to);
+  if (options.guided_search) ExtendByTemplate(onsets, x, duration_s, to, &out.sequences);
+
+  TimingOptions tim;
+  tim.lpc_order = options.lpc_order;
+  for (Sequence& q : out.sequences) TimeSequence(x, rate_hz, &q, tim);
+  PlausibilityOptions po;
+  po.min_snr_db = options.min_snr_db;
+  po.min_sequence_impacts = options.min_sequence_impacts;
+  std::vector<std::size_t> sizes;
+  for (const Sequence& q : out.sequences) sizes.push_back(q.impacts.size() + q.removed.size());
+  out.warnings = EnforcePlausibility(&out.sequences, po);
+  // The predictor and template of a sequence that lost members included them: time it again.
+  for (Sequence& q : out.sequences)
+    if (!q.removed.empty()) TimeSequence(x, rate_hz, &q, tim);
+  for (Sequence& q : out.sequences)
+    for (Impact& imp : q.impacts)
+      imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
+
+  if (out.sequences.empty()) {
+    std::string why = std::to_string(out.candidates.size()) + " onset candidates; ";
+    if (out.warnings.empty())
+      why += "none form " + std::to_string(options.min_sequence_impacts) +
+             " or more impacts with shrinking intervals";
+    else
+      why += "the sequences they formed are not a bouncing ball: " + out.warnings.back().message;
+    out.failure = why;
+  } else {
+    out.score = SequenceScore(out.sequences[static_cast<std::size_t>(LongestSequence(out.sequences))]);
+  }
+  return out;
+}
+
+// The signal of one choice (a channel or the mix) and its clipping level.
+std::vector<float> SignalOf(const Audio& audio, int channel, std::size_t i0, std::size_t i1,
+                            double* clip_peak) {
+  const ChannelSelection sel = channel >= 0
+                                   ? ChannelSelection{ChannelSelection::Kind::kIndex, channel}
+                                   : ChannelSelection{ChannelSelection::Kind::kMix, 0};
+  std::vector<float> x = SelectChannel(audio, sel).samples;
+  *clip_peak = 0.0;
+  for (const ClippingReport& c : audio.clipping)
+    if (c.clipped() && (channel < 0 || c.channel == channel))
+      *clip_peak = channel < 0 ? 0.999 * c.peak / static_cast<double>(audio.channels.size())
+                               : c.peak;
+  return std::vector<float>(x.begin() + static_cast<std::ptrdiff_t>(i0),
+                            x.begin() + static_cast<std::ptrdiff_t>(i1));
+}
+
+void ShiftTimes(double dt, SignalDetection* d) {
+  for (Impact& i : d->candidates) i.time_s += dt;
+  for (Sequence& q : d->sequences) {
+    for (Impact& i : q.impacts) i.time_s += dt;
+    for (RemovedImpact& r : q.removed) r.impact.time_s += dt;
+  }
+}
+
 }  // namespace
 
 bool DetectOptions::IsValid(std::string* error) const {
@@ -130,6 +289,13 @@ bool DetectOptions::IsValid(std::string* error) const {
     return fail("DetectOptions::lpc_order = " + std::to_string(lpc_order) + ": must be 0..256");
   if (channel.kind == ChannelSelection::Kind::kIndex && channel.index < 0)
     return fail("DetectOptions::channel.index must be >= 0");
+  if (!(start_s >= 0.0) || !std::isfinite(start_s))
+    return fail("DetectOptions::start_s = " + Fmt("%g", start_s) + ": must be a finite time >= 0 s");
+  if (end_s && (!std::isfinite(*end_s) || !(*end_s > start_s)))
+    return fail("DetectOptions::end_s = " + Fmt("%g", *end_s) + ": must be a finite time after start_s = " +
+                Fmt("%g", start_s) + " s");
+  if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
+    return fail("DetectOptions::min_snr_db = " + Fmt("%g", min_snr_db) + ": must be in [-120, 120] dB");
   return true;
 }
 
@@ -142,57 +308,102 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
   res.clipping = audio.clipping;
   if (audio.channels.empty() || audio.channels.front().empty())
     throw Error(ErrorCode::kNotAudio, path + ": no samples");
-  // One channel: nothing to choose (skips the auto score, which costs a full pass).
-  ChannelSelection choice = options.channel;
-  if (audio.channels.size() == 1 && choice.kind == ChannelSelection::Kind::kAuto)
-    choice = ChannelSelection{ChannelSelection::Kind::kIndex, 0};
-  const SelectedSignal sel = SelectChannel(audio, choice);
-  res.channel = sel.channel;
-  res.channel_score_db = sel.channel_score;
-  double peak = 0.0;
-  for (float v : sel.samples) peak = std::max(peak, static_cast<double>(std::fabs(v)));
-  if (peak <= kSilencePeak)
-    throw Error(ErrorCode::kSilence, path + ": recording is silent (peak |x| = " +
-                                         Fmt("%.3g", peak) + ", at or below one 16-bit step)");
+  const double rate = audio.info.sample_rate_hz;
+  const std::size_t frames = audio.channels.front().size();
+  const double duration_s = static_cast<double>(frames) / rate;
 
-  OnsetOptions oo;
-  oo.hop_s = options.hop_s;
-  oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
-  oo.lpc_order = options.lpc_order;
-  const OnsetDetector detector(oo, audio.info.sample_rate_hz);
-  OnsetResult onsets = detector.Detect(sel.samples);
+  // 1. Window.
+  const std::string window = "[" + Fmt("%g", options.start_s) + ", " +
+                             (options.end_s ? Fmt("%g", *options.end_s) : std::string("end")) +
+                             ") s";
+  if (options.start_s >= duration_s)
+    throw Error(ErrorCode::kNoBounces, path + ": the window " + window +
+                                           " starts after the recording ends (" +
+                                           Fmt("%.3f", duration_s) + " s)");
+  const std::size_t i0 = static_cast<std::size_t>(std::ceil(options.start_s * rate));
+  const std::size_t i1 = options.end_s
+                             ? std::min(frames, static_cast<std::size_t>(std::ceil(*options.end_s * rate)))
+                             : frames;
+  res.start_s = static_cast<double>(i0) / rate;
+  res.end_s = static_cast<double>(i1) / rate;
+  const double shift_s = res.start_s;
 
-  // Clipped impacts: the impact's peak reaches a clipped channel's extreme value.
-  for (Impact& imp : onsets.onsets) {
-    for (const ClippingReport& c : audio.clipping) {
-      if (sel.channel >= 0 && c.channel != sel.channel) continue;
-      if (c.clipped() && imp.amplitude >= 0.999 * c.peak) imp.clipped = true;
+  // 2. Which signals to try.
+  std::vector<int> choices;
+  const int nch = static_cast<int>(audio.channels.size());
+  switch (options.channel.kind) {
+    case ChannelSelection::Kind::kIndex:
+      if (options.channel.index >= nch) SelectChannel(audio, options.channel);  // throws kUsage
+      choices = {options.channel.index};
+      break;
+    case ChannelSelection::Kind::kMix:
+      choices = {-1};
+      break;
+    case ChannelSelection::Kind::kAuto:
+      for (int c = 0; c < nch; ++c) choices.push_back(c);
+      if (nch > 1) choices.push_back(-1);
+      break;
+  }
+
+  // 3. Detect in each; keep the best-scoring signal.
+  int best = -1;
+  SignalDetection chosen;
+  std::string failures;
+  bool any_sound = false;
+  for (std::size_t ci = 0; ci < choices.size(); ++ci) {
+    double clip_peak = 0.0;
+    const std::vector<float> x = SignalOf(audio, choices[ci], i0, i1, &clip_peak);
+    double peak = 0.0;
+    for (float v : x) peak = std::max(peak, static_cast<double>(std::fabs(v)));
+    ChannelScore cs;
+    cs.channel = choices[ci];
+    if (peak <= kSilencePeak) {
+      cs.failure = "silent (peak |x| = " + Fmt("%.3g", peak) + ")";
+    } else {
+      any_sound = true;
+      SignalDetection d = DetectInSignal(x, rate, clip_peak, options);
+      ShiftTimes(shift_s, &d);
+      cs.failure = d.failure;
+      cs.score = d.score;
+      if (d.failure.empty()) {
+        const Sequence& m = d.sequences[static_cast<std::size_t>(LongestSequence(d.sequences))];
+        cs.impacts = static_cast<int>(m.impacts.size());
+        cs.first_impact_s = m.impacts.front().time_s;
+      }
+      if (best < 0 || d.score > chosen.score) {
+        best = static_cast<int>(ci);
+        chosen = std::move(d);
+      }
     }
+    if (!cs.failure.empty())
+      failures += std::string(failures.empty() ? "" : "; ") +
+                  (choices.size() > 1 ? (cs.channel >= 0 ? "channel " + std::to_string(cs.channel)
+                                                         : std::string("mix")) +
+                                            ": "
+                                      : std::string()) +
+                  cs.failure;
+    res.channel_scores.push_back(cs);
   }
-  res.candidates = onsets.onsets;
-
-  TrackOptions to;
-  to.min_interval_s = options.min_interval_s;
-  to.min_sequence_impacts = options.min_sequence_impacts;
-  res.sequences = TrackSequences(res.candidates, audio.info.duration_s(), to);
-  if (options.guided_search)
-    ExtendByTemplate(onsets, sel.samples, audio.info.duration_s(), to, &res.sequences);
-  if (res.sequences.empty())
+  const bool windowed = options.start_s > 0.0 || options.end_s.has_value();
+  if (!any_sound)
+    throw Error(ErrorCode::kSilence, path + ": recording" + (windowed ? " window " + window : "") +
+                                         " is silent (peak |x| at or below one 16-bit step)");
+  if (best < 0 || chosen.sequences.empty())
     throw Error(ErrorCode::kNoBounces,
-                path + ": no bounce sequence found (" + std::to_string(res.candidates.size()) +
-                    " onset candidates; none form " + std::to_string(options.min_sequence_impacts) +
-                    " or more impacts with shrinking intervals)");
-  if (!options.refine) {
-    for (Impact& im : res.candidates) CoarsenToHop(&im, detector.hop_samples(), onsets.rate_hz);
-    for (Sequence& q : res.sequences)
-      for (Impact& im : q.impacts) CoarsenToHop(&im, detector.hop_samples(), onsets.rate_hz);
-  }
-  res.main_sequence = 0;
-  for (std::size_t s = 1; s < res.sequences.size(); ++s)
-    if (res.sequences[s].impacts.size() >
-        res.sequences[static_cast<std::size_t>(res.main_sequence)].impacts.size())
-      res.main_sequence = static_cast<int>(s);
+                path + ": no bounce sequence found" + (windowed ? " in the window " + window : "") +
+                    " (" + failures + ")");
+  res.channel = choices[static_cast<std::size_t>(best)];
+  if (res.channel_scores.size() == 1) res.channel_scores.clear();  // nothing was chosen
 
+  // 4. Result and warnings.
+  res.candidates = std::move(chosen.candidates);
+  res.sequences = std::move(chosen.sequences);
+  if (!options.refine) {
+    for (Impact& im : res.candidates) CoarsenToHop(&im, chosen.hop_samples, rate);
+    for (Sequence& q : res.sequences)
+      for (Impact& im : q.impacts) CoarsenToHop(&im, chosen.hop_samples, rate);
+  }
+  res.main_sequence = LongestSequence(res.sequences);
   for (const ClippingReport& c : audio.clipping)
     if (c.clipped())
       res.warnings.push_back({"clipped",
@@ -201,17 +412,9 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
                                   " samples at its extreme value); onsets are still usable, "
                                   "amplitudes are not",
                               -1});
-  for (std::size_t s = 0; s < res.sequences.size(); ++s) {
-    const Sequence& q = res.sequences[s];
-    for (int k : q.missed_after)
-      res.warnings.push_back(
-          {"missed_impact",
-           "sequence " + std::to_string(s) + ": an impact seems missing after impact " +
-               std::to_string(k) +
-               " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
-               " s); its interval is about two expected ones",
-           k});
-  }
+  ChannelChoiceWarning(res, &res.warnings);
+  res.warnings.insert(res.warnings.end(), chosen.warnings.begin(), chosen.warnings.end());
+  FlagWarnings(res.sequences, &res.warnings);
   return res;
 }
 

@@ -19,7 +19,8 @@ struct State {
   double score = 0.0;
   double ratio = kNaN;  // last ratio r = dt / dt_prev (NaN for the first pair)
   double d_eff = 0.0;   // last single interval (estimated one after a missed impact)
-  bool missed = false;  // an impact seems missing between i and k
+  bool missed = false;     // an impact seems missing between i and k
+  bool irregular = false;  // the step to k broke the smooth ratio pattern (tolerated once)
   int back = -1;        // previous state
   int len = 2;
 };
@@ -27,6 +28,7 @@ struct State {
 struct Chain {
   std::vector<int> members;  // candidate indices
   std::vector<int> missed_after;
+  std::vector<int> irregular_after;
   double last_ratio = kNaN;
   double last_interval = 0.0;
   double score = 0.0;
@@ -40,6 +42,10 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
   if (m < o.min_sequence_impacts) return best_chain;
   std::vector<State> states;
   std::vector<std::vector<int>> ending(static_cast<std::size_t>(m));  // state ids ending at pos
+  std::vector<double> level(static_cast<std::size_t>(m));              // dBFS
+  for (int p = 0; p < m; ++p)
+    level[static_cast<std::size_t>(p)] =
+        20.0 * std::log10(std::max(c[static_cast<std::size_t>(idx[static_cast<std::size_t>(p)])].amplitude, 1e-12));
   const double two_sigma2 = 2.0 * o.ratio_sigma * o.ratio_sigma;
   for (int kp = 1; kp < m; ++kp) {
     const double tk = c[static_cast<std::size_t>(idx[static_cast<std::size_t>(kp)])].time_s;
@@ -51,6 +57,9 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
       if (d < o.min_interval_s) continue;
       if (d > o.max_interval_s) break;
       ++fan;
+      // An earlier impact is faster, so not much quieter (plausibility.hpp, the level model).
+      if (level[static_cast<std::size_t>(kp)] - level[static_cast<std::size_t>(ip)] > o.max_level_rise_db)
+        continue;
       // The fresh start (i, k) and up to kKeep extensions with distinct last ratios: the
       // best-scoring history is not always the one the future can continue.
       State fresh;
@@ -83,19 +92,26 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
         State s = fresh;
         s.back = prev_id;
         s.len = p.len + 1;
-        if (r <= o.max_ratio) {
-          double cost = 0.0;
-          if (!std::isnan(p.ratio)) {
-            const double jump = std::log(r / p.ratio);
-            if (std::fabs(jump) > o.max_log_ratio_jump) continue;
-            cost = jump * jump / two_sigma2;
-          }
-          s.score = p.score + wk - cost;
+        const bool has_trend = !std::isnan(p.ratio);
+        const double jump = has_trend ? std::log(r / p.ratio) : 0.0;
+        if (r <= o.max_ratio && std::fabs(jump) <= o.max_log_ratio_jump) {
+          s.score = p.score + wk - jump * jump / two_sigma2;
           s.ratio = r;
           s.d_eff = d;
-          s.missed = false;
           offer(s);
-        } else if (!std::isnan(p.ratio) && !p.missed) {
+        } else if (has_trend && p.len >= 4 && !p.irregular && !p.missed &&
+                   r <= o.max_irregular_ratio &&
+                   std::fabs(jump) <= o.max_irregular_log_jump) {
+          // Spin or an uneven spot: one interval off the pattern, tolerated at a cost; the
+          // trend ratio carries on to judge the next step.
+          State irr = s;
+          irr.score = p.score + wk - o.irregular_penalty;
+          irr.ratio = p.ratio;
+          irr.d_eff = d;
+          irr.irregular = true;
+          offer(irr);
+        }
+        if (r > o.max_ratio && has_trend && !p.missed) {
           // One impact missed between i and k: d ~ d_prev (e + e^2).
           const double e = p.ratio;
           const double expected = p.d_eff * (e + e * e);
@@ -130,24 +146,28 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
   chain.last_ratio = states[static_cast<std::size_t>(best)].ratio;
   chain.last_interval = states[static_cast<std::size_t>(best)].d_eff;
   std::vector<int> rev;
-  std::vector<bool> rev_missed;
+  std::vector<bool> rev_missed, rev_irregular;
   for (int s = best; s >= 0; s = states[static_cast<std::size_t>(s)].back) {
     const State& st = states[static_cast<std::size_t>(s)];
     rev.push_back(st.k);
     rev_missed.push_back(st.missed);
+    rev_irregular.push_back(st.irregular);
     if (st.back < 0) {
       rev.push_back(st.i);
       rev_missed.push_back(false);
+      rev_irregular.push_back(false);
     }
   }
   std::reverse(rev.begin(), rev.end());
   std::reverse(rev_missed.begin(), rev_missed.end());
+  std::reverse(rev_irregular.begin(), rev_irregular.end());
   // rev_missed[j] refers to the step arriving at rev[j].
   double wsum = 0.0;
   for (std::size_t j = 0; j < rev.size(); ++j) {
     chain.members.push_back(idx[static_cast<std::size_t>(rev[j])]);
     wsum += w[static_cast<std::size_t>(idx[static_cast<std::size_t>(rev[j])])];
     if (rev_missed[j]) chain.missed_after.push_back(static_cast<int>(j) - 1);
+    if (rev_irregular[j]) chain.irregular_after.push_back(static_cast<int>(j) - 1);
   }
   if (wsum / static_cast<double>(rev.size()) < min_mean_weight) return best_chain;
   return chain;
@@ -167,6 +187,12 @@ bool TrackOptions::IsValid(std::string* error) const {
     return fail("TrackOptions: need 0 < min_ratio < max_ratio");
   if (!(ratio_sigma > 0.0)) return fail("TrackOptions::ratio_sigma must be > 0");
   if (!(max_log_ratio_jump > 0.0)) return fail("TrackOptions::max_log_ratio_jump must be > 0");
+  if (!(max_irregular_ratio >= max_ratio))
+    return fail("TrackOptions::max_irregular_ratio must be >= max_ratio");
+  if (!(max_irregular_log_jump >= max_log_ratio_jump))
+    return fail("TrackOptions::max_irregular_log_jump must be >= max_log_ratio_jump");
+  if (!(irregular_penalty >= 0.0)) return fail("TrackOptions::irregular_penalty must be >= 0");
+  if (!(max_level_rise_db > 0.0)) return fail("TrackOptions::max_level_rise_db must be > 0");
   if (!(missed_tolerance >= 0.0) || missed_tolerance > 0.5)
     return fail("TrackOptions::missed_tolerance must be in [0, 0.5]");
   if (min_sequence_impacts < 3)
@@ -228,6 +254,7 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
     Sequence seq;
     for (int i : ch.members) seq.impacts.push_back(c[static_cast<std::size_t>(i)]);
     seq.missed_after = ch.missed_after;
+    seq.irregular_after = ch.irregular_after;
     const double t_last = seq.impacts.back().time_s;
     const double next_dt = ch.last_interval * ch.last_ratio;
     const double next_t = t_last + next_dt;

@@ -1,17 +1,23 @@
 // bouncecal/acoustic/detect.hpp — recording -> impacts -> bounce sequences (the acoustic half).
 //
-// The pipeline: channel selection -> onset detection (onsets.hpp: whitening, spectral novelty
-// on an FFTW STFT, adaptive threshold, sub-sample change-point refinement) -> bounce-sequence
-// tracking (sequence.hpp). Times are seconds from the start of the file.
+// The pipeline, per candidate signal (a channel or the mix): onset detection (onsets.hpp:
+// whitening, spectral novelty on an FFTW STFT, adaptive threshold, template search) ->
+// bounce-sequence tracking (sequence.hpp) -> guided search where the tracker expects impacts ->
+// local timing with per-impact sigma (timing.hpp) -> physical plausibility (plausibility.hpp)
+// -> re-timing of the sequences that lost members. With ChannelSelection auto and several
+// channels, every channel and the mix go through it and the one whose main sequence scores
+// best (ChannelScore) is used. Times are seconds from the start of the file.
 //
 //   Audio a = ReadAudio(path);
 //   DetectionResult r = DetectImpacts(a, DetectOptions{});
 //   for (const Impact& i : r.main().impacts) ... i.time_s, i.sigma_s
 //
-// Throws Error(kSilence) for a silent recording and Error(kNoBounces) when no sequence of at
-// least DetectOptions::min_sequence_impacts impacts is found.
+// Throws Error(kSilence) for a silent recording (or window) and Error(kNoBounces) when no
+// plausible sequence of at least DetectOptions::min_sequence_impacts impacts is found (the
+// message says why: no candidates, intervals that do not shrink, members removed...).
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,10 +35,18 @@ struct Impact {
   bool clipped = false;    // the impact's peak is clipped
 };
 
+// A member taken out of a sequence by the plausibility stage (plausibility.hpp), and why.
+struct RemovedImpact {
+  Impact impact;
+  std::string code;  // the warning code: "phantom_removed", "low_snr_removed", "sigma_removed"
+};
+
 struct Sequence {
   std::vector<Impact> impacts;
-  std::vector<int> missed_after;  // k: an impact seems missing between impacts k and k+1
-  std::string end_reason;         // "resolved_limit", "end_of_file", "gap", ...
+  std::vector<int> missed_after;     // k: an impact seems missing between impacts k and k+1
+  std::vector<int> irregular_after;  // k: interval k -> k+1 breaks the smooth ratio pattern
+  std::vector<RemovedImpact> removed;  // members removed as implausible, in time order
+  std::string end_reason;              // "resolved_limit", "end_of_file", "gap", ...
 };
 
 struct DetectOptions {
@@ -42,15 +56,33 @@ struct DetectOptions {
   int min_sequence_impacts = 3;   // fewer than this: not a bounce sequence
   double min_interval_s = 0.003;  // impacts closer than this are not resolvable
   bool guided_search = true;      // look again where the tracker expects the next impact
-  int lpc_order = 48;             // whitening predictor order (onsets.hpp)
+  int lpc_order = 48;             // whitening predictor order (onsets.hpp, timing.hpp)
+  // Analyse only [start_s, end_s) of the recording (end_s unset: to its end). Times stay
+  // seconds from the start of the file.
+  double start_s = 0.0;
+  std::optional<double> end_s;
+  // Members below this local SNR (timing.hpp) are removed (plausibility.hpp; measured on the
+  // synthetic corpus and the real recordings, see README "Detection warnings").
+  double min_snr_db = 0.0;
   bool IsValid(std::string* error) const;
+};
+
+// How well one channel (or the mix) supports a bounce sequence: the detection ran on it alone.
+struct ChannelScore {
+  int channel = -1;         // -1 = the mix of all channels
+  double score = 0.0;       // sum of the tracker weights of the main sequence's members (0: none)
+  int impacts = 0;          // members of its main sequence
+  double first_impact_s = 0.0;
+  std::string failure;      // why nothing was found (empty if a sequence was)
 };
 
 struct DetectionResult {
   AudioInfo audio;
   int channel = -1;  // channel used, -1 = mix
-  std::vector<double> channel_score_db;
+  std::vector<ChannelScore> channel_scores;  // auto on several channels: every candidate signal
   std::vector<ClippingReport> clipping;
+  double start_s = 0.0;             // the analysed window [start_s, end_s)
+  double end_s = 0.0;
   std::vector<Impact> candidates;   // every onset found, before tracking
   std::vector<Sequence> sequences;  // in time order
   int main_sequence = -1;           // index of the longest sequence

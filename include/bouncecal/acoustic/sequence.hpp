@@ -11,7 +11,7 @@
 // with hard limits r in [min_ratio, max_ratio], |log(r_k / r_{k-1})| <= max_log_ratio_jump,
 // dt >= min_interval_s (not resolvable below). A step whose interval is about the sum of two
 // expected ones (dt ~ dt_prev (e + e^2)) is accepted with a penalty and flagged as a missed
-// impact. The best chain is taken, then the search repeats on the candidates outside the
+// impact; a single step off the pattern (irregular bounce) likewise, flagged as irregular. The best chain is taken, then the search repeats on the candidates outside the
 // chains found so far (several drops in one file become separate sequences).
 //
 //   std::vector<Sequence> s = TrackSequences(candidates, duration_s, TrackOptions{});
@@ -35,6 +35,18 @@ struct TrackOptions {
   double max_ratio = 1.02;            // largest (timing noise on e ~ 1)
   double ratio_sigma = 0.03;          // scale of the log-ratio change between bounces
   double max_log_ratio_jump = 0.2;    // hard limit on |log(r_k / r_{k-1})|
+  // One step may break the pattern (spin, an uneven spot: real balls' e scatters by 0.005-0.05
+  // and single intervals jump more), if the chain has 4 impacts with regular steps before it:
+  // ratio up to max_irregular_ratio and |log(r_k / trend)| up to max_irregular_log_jump, at a
+  // score cost of irregular_penalty (the largest weight one candidate can bring, so a chain
+  // only pays it to continue through several more impacts). The trend ratio before the
+  // irregular step judges the next one. Flagged in irregular_after.
+  double max_irregular_ratio = 1.15;
+  double max_irregular_log_jump = 0.4;
+  double irregular_penalty = 3.0;
+  // A step may not rise in level (Impact::amplitude) by more than this: the earlier impact is
+  // the faster one (plausibility.hpp explains the level model and the 20 dB).
+  double max_level_rise_db = 20.0;
   double missed_tolerance = 0.05;     // relative tolerance of the missed-impact interval
   double missed_penalty = 1.5;        // score cost of a flagged missed impact
   int min_sequence_impacts = 3;       // fewer impacts: not a bounce sequence

@@ -1,0 +1,255 @@
+// Physical plausibility of tracked sequences. See include/bouncecal/acoustic/plausibility.hpp.
+#include "bouncecal/acoustic/plausibility.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "bouncecal/core/error.hpp"
+
+namespace bouncecal {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::string Fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+double LevelDb(const Impact& i) { return 20.0 * std::log10(std::max(i.amplitude, 1e-12)); }
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+// Removes the members for which drop[k] is true (recorded in s->removed with `code`); a removal
+// from inside the sequence leaves a gap of two flights, flagged in missed_after. Indices in
+// missed_after / irregular_after are renumbered.
+void RemoveMembers(Sequence* s, const std::vector<bool>& drop, const std::string& code) {
+  std::vector<Impact> kept;
+  std::vector<int> new_index(s->impacts.size(), -1);
+  std::vector<int> missed, irregular;
+  for (std::size_t k = 0; k < s->impacts.size(); ++k) {
+    if (drop[k]) {
+      s->removed.push_back({s->impacts[k], code});
+      if (!kept.empty() && k + 1 < s->impacts.size()) missed.push_back(static_cast<int>(kept.size()) - 1);
+      continue;
+    }
+    new_index[k] = static_cast<int>(kept.size());
+    kept.push_back(s->impacts[k]);
+  }
+  auto remap = [&](const std::vector<int>& v, std::vector<int>* out) {
+    for (int k : v) {
+      // Flag k (interval k -> k+1) survives when both ends survive.
+      const std::size_t a = static_cast<std::size_t>(k), b = a + 1;
+      if (b < new_index.size() && new_index[a] >= 0 && new_index[b] >= 0)
+        out->push_back(new_index[a]);
+    }
+  };
+  remap(s->missed_after, &missed);
+  remap(s->irregular_after, &irregular);
+  // A gap can only be flagged when the removed member had kept neighbours on both sides.
+  std::vector<int> m2;
+  for (int k : missed)
+    if (k >= 0 && k + 1 < static_cast<int>(kept.size())) m2.push_back(k);
+  std::sort(m2.begin(), m2.end());
+  m2.erase(std::unique(m2.begin(), m2.end()), m2.end());
+  s->impacts = std::move(kept);
+  s->missed_after = std::move(m2);
+  s->irregular_after = std::move(irregular);
+  std::sort(s->removed.begin(), s->removed.end(), [](const RemovedImpact& a, const RemovedImpact& b) {
+    return a.impact.time_s < b.impact.time_s;
+  });
+}
+
+}  // namespace
+
+bool PlausibilityOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
+    return fail("PlausibilityOptions::min_snr_db = " + Fmt("%g", min_snr_db) +
+                ": must be in [-120, 120] dB");
+  if (!(max_sigma_fraction > 0.0) || max_sigma_fraction > 1.0)
+    return fail("PlausibilityOptions::max_sigma_fraction = " + Fmt("%g", max_sigma_fraction) +
+                ": must be in (0, 1]");
+  if (!(level_tolerance_db > 0.0) || !std::isfinite(level_tolerance_db))
+    return fail("PlausibilityOptions::level_tolerance_db must be a finite number > 0");
+  if (!(sequence_level_tolerance_db > 0.0) || !std::isfinite(sequence_level_tolerance_db))
+    return fail("PlausibilityOptions::sequence_level_tolerance_db must be a finite number > 0");
+  if (level_reference_members < 1)
+    return fail("PlausibilityOptions::level_reference_members must be >= 1");
+  if (!(max_mean_ratio > 0.0) || max_mean_ratio > 1.05)
+    return fail("PlausibilityOptions::max_mean_ratio = " + Fmt("%g", max_mean_ratio) +
+                ": must be in (0, 1.05]");
+  if (min_sequence_impacts < 3)
+    return fail("PlausibilityOptions::min_sequence_impacts = " +
+                std::to_string(min_sequence_impacts) + ": must be >= 3");
+  return true;
+}
+
+double LevelAtUnitSpeedDb(const Sequence& s) {
+  std::vector<double> c;
+  for (std::size_t k = 1; k < s.impacts.size(); ++k) {
+    const double t_prev = s.impacts[k].time_s - s.impacts[k - 1].time_s;
+    if (t_prev > 0.0) c.push_back(LevelDb(s.impacts[k]) - 20.0 * std::log10(t_prev));
+  }
+  return Median(c);
+}
+
+double MeanIntervalRatio(const Sequence& s) {
+  const auto& q = s.impacts;
+  if (q.size() < 3) return kNaN;
+  double sum = 0.0;
+  int n = 0;
+  for (std::size_t k = 2; k < q.size(); ++k) {
+    const double d0 = q[k - 1].time_s - q[k - 2].time_s, d1 = q[k].time_s - q[k - 1].time_s;
+    if (!(d0 > 0.0) || !(d1 > 0.0)) continue;
+    sum += std::log(d1 / d0);
+    ++n;
+  }
+  return n > 0 ? std::exp(sum / n) : kNaN;
+}
+
+std::vector<Warning> RemoveUntimedMembers(Sequence* s, const PlausibilityOptions& o,
+                                          const std::string& label) {
+  std::vector<Warning> out;
+  const auto& q = s->impacts;
+  std::vector<bool> drop(q.size(), false);
+  for (std::size_t k = 0; k < q.size(); ++k) {
+    double shorter = std::numeric_limits<double>::infinity();
+    if (k > 0) shorter = std::min(shorter, q[k].time_s - q[k - 1].time_s);
+    if (k + 1 < q.size()) shorter = std::min(shorter, q[k + 1].time_s - q[k].time_s);
+    const double sig = q[k].sigma_s;
+    if (std::isfinite(sig) && sig > 0.0 && sig <= o.max_sigma_fraction * shorter) continue;
+    drop[k] = true;
+    out.push_back({"sigma_removed",
+                   label + ": the impact at t = " + Fmt("%.4f", q[k].time_s) +
+                       " s was removed: its timing sigma (" + Fmt("%.3g", sig) +
+                       " s) is not below max_sigma_fraction = " + Fmt("%g", o.max_sigma_fraction) +
+                       " of its shorter interval (" + Fmt("%.4f", shorter) + " s)",
+                   -1});
+  }
+  if (!out.empty()) RemoveMembers(s, drop, "sigma_removed");
+  return out;
+}
+
+std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions& o,
+                                         const std::string& label) {
+  std::vector<Warning> out;
+  std::vector<bool> drop(s->impacts.size(), false);
+  for (std::size_t k = 0; k < s->impacts.size(); ++k) {
+    const Impact& i = s->impacts[k];
+    if (i.snr_db >= o.min_snr_db) continue;
+    drop[k] = true;
+    out.push_back({"low_snr_removed",
+                   label + ": the impact at t = " + Fmt("%.4f", i.time_s) + " s was removed: SNR " +
+                       Fmt("%.1f", i.snr_db) + " dB is below min_snr_db = " +
+                       Fmt("%g", o.min_snr_db) + " dB",
+                   -1});
+  }
+  if (!out.empty()) RemoveMembers(s, drop, "low_snr_removed");
+  return out;
+}
+
+std::vector<Warning> RemoveQuietEarlierMembers(Sequence* s, const PlausibilityOptions& o,
+                                               const std::string& label) {
+  std::vector<Warning> out;
+  // Repeat until stable: a removed member no longer sets the reference of earlier ones.
+  for (bool changed = true; changed;) {
+    changed = false;
+    const auto& q = s->impacts;
+    std::vector<bool> drop(q.size(), false);
+    for (std::size_t k = 0; k + 1 < q.size(); ++k) {
+      std::vector<double> later;
+      for (std::size_t j = k + 1;
+           j < q.size() && later.size() < static_cast<std::size_t>(o.level_reference_members); ++j)
+        later.push_back(LevelDb(q[j]));
+      const double ref = Median(later);
+      const double below = ref - LevelDb(q[k]);
+      if (!(below > o.level_tolerance_db)) continue;
+      drop[k] = true;
+      out.push_back({"phantom_removed",
+                     label + ": the impact at t = " + Fmt("%.4f", q[k].time_s) +
+                         " s was removed: its level (" + Fmt("%.1f", LevelDb(q[k])) + " dBFS) is " +
+                         Fmt("%.1f", below) +
+                         " dB below the impacts after it, but an earlier impact is faster and "
+                         "so not quieter (level_tolerance_db = " +
+                         Fmt("%g", o.level_tolerance_db) + ")",
+                     -1});
+    }
+    if (std::find(drop.begin(), drop.end(), true) != drop.end()) {
+      RemoveMembers(s, drop, "phantom_removed");
+      changed = true;
+    }
+  }
+  return out;
+}
+
+std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
+                                         const PlausibilityOptions& o) {
+  std::string why;
+  if (!o.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
+  std::vector<Warning> out;
+  auto append = [&](std::vector<Warning> w) { out.insert(out.end(), w.begin(), w.end()); };
+  std::vector<Sequence>& seqs = *sequences;
+  std::vector<std::string> labels;
+  std::vector<bool> keep(seqs.size(), true);
+  for (std::size_t s = 0; s < seqs.size(); ++s) {
+    labels.push_back("the sequence from " +
+                     Fmt("%.4f", seqs[s].impacts.empty() ? 0.0 : seqs[s].impacts.front().time_s) +
+                     " s");
+    append(RemoveUntimedMembers(&seqs[s], o, labels[s]));
+    append(RemoveLowSnrMembers(&seqs[s], o, labels[s]));
+    append(RemoveQuietEarlierMembers(&seqs[s], o, labels[s]));
+    const double ratio = MeanIntervalRatio(seqs[s]);
+    if (seqs[s].impacts.size() < static_cast<std::size_t>(o.min_sequence_impacts)) {
+      keep[s] = false;
+      if (!seqs[s].removed.empty())
+        out.push_back({seqs[s].removed.back().code,
+                       labels[s] + ": fewer than " + std::to_string(o.min_sequence_impacts) +
+                           " impacts remain after the removals above: not a bounce sequence",
+                       -1});
+    } else if (!(ratio <= o.max_mean_ratio)) {
+      keep[s] = false;
+      out.push_back({"not_shrinking",
+                     labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
+                         " impacts whose intervals do not shrink on average (mean ratio " +
+                         Fmt("%.4f", ratio) + " > max_mean_ratio = " + Fmt("%g", o.max_mean_ratio) +
+                         "): a metronome or repeated clicks, not a bouncing ball",
+                     -1});
+    }
+  }
+  // Sequences far quieter than the loudest one at the same impact speed: not this ball.
+  double loudest = -std::numeric_limits<double>::infinity();
+  for (std::size_t s = 0; s < seqs.size(); ++s)
+    if (keep[s]) loudest = std::max(loudest, LevelAtUnitSpeedDb(seqs[s]));
+  for (std::size_t s = 0; s < seqs.size(); ++s) {
+    if (!keep[s]) continue;
+    const double below = loudest - LevelAtUnitSpeedDb(seqs[s]);
+    if (!(below > o.sequence_level_tolerance_db)) continue;
+    keep[s] = false;
+    out.push_back({"phantom_removed",
+                   labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
+                       " impacts removed: at the same impact speed they are " + Fmt("%.1f", below) +
+                       " dB quieter than the loudest sequence of this recording, so they are not "
+                       "this ball (sequence_level_tolerance_db = " +
+                       Fmt("%g", o.sequence_level_tolerance_db) + ")",
+                   -1});
+  }
+  std::vector<Sequence> kept;
+  for (std::size_t s = 0; s < seqs.size(); ++s)
+    if (keep[s]) kept.push_back(std::move(seqs[s]));
+  seqs = std::move(kept);
+  return out;
+}
+
+}  // namespace bouncecal

@@ -1,0 +1,459 @@
+// Final, local timing of a sequence's impacts. See include/bouncecal/acoustic/timing.hpp.
+#include "bouncecal/acoustic/timing.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "bouncecal/acoustic/onsets.hpp"
+#include "bouncecal/core/error.hpp"
+
+namespace bouncecal {
+namespace {
+
+// Half width (samples) of the windowed-sinc interpolation kernel, and the fine grid (steps per
+// sample) on which the interpolated correlation peak is searched before a parabolic refinement.
+constexpr long kSincHalf = 8;
+constexpr int kPeakGrid = 32;
+
+double WindowedSinc(double d) {
+  if (std::fabs(d) >= static_cast<double>(kSincHalf)) return 0.0;
+  const double s = std::fabs(d) < 1e-12 ? 1.0
+                                        : std::sin(std::numbers::pi * d) / (std::numbers::pi * d);
+  return s * (0.5 + 0.5 * std::cos(std::numbers::pi * d / static_cast<double>(kSincHalf)));
+}
+
+// Robust rms (Gaussian: 1.4826 * median |x|) of p[0, n).
+double RobustRms(const float* p, std::size_t n) {
+  if (n == 0) return 0.0;
+  std::vector<float> a(p, p + n);
+  for (float& v : a) v = std::fabs(v);
+  const auto mid = a.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(a.begin(), mid, a.end());
+  return 1.4826 * static_cast<double>(*mid);
+}
+
+// The whitened neighbourhood of one member: w[i] is the whitened sample begin + i.
+struct Neighbourhood {
+  long begin = 0;
+  std::vector<float> w;
+  long end() const { return begin + static_cast<long>(w.size()); }
+  float at(long n) const {
+    return n >= begin && n < end() ? w[static_cast<std::size_t>(n - begin)] : 0.0f;
+  }
+};
+
+// Per-member measures at an onset (fractional sample index): local noise floor of the whitened
+// signal, SNR, raw peak level.
+struct LocalMeasures {
+  double noise_rms = 0.0;
+  double snr_db = 0.0;
+  double amplitude = 0.0;
+};
+
+LocalMeasures Measure(const Neighbourhood& nb, const std::vector<float>& x, double onset,
+                      double rate_hz, const TimingOptions& o) {
+  LocalMeasures m;
+  const long i0 = static_cast<long>(std::floor(onset)) + 1;  // first sample of the new regime
+  const long guard = std::max(2L, std::lround(o.noise_guard_s * rate_hz));
+  const long noise_len = std::max(16L, std::lround(o.noise_window_s * rate_hz));
+  const long n_hi = std::max(nb.begin, i0 - guard);
+  const long n_lo = std::max(nb.begin, n_hi - noise_len);
+  if (n_hi > n_lo)
+    m.noise_rms = RobustRms(nb.w.data() + (n_lo - nb.begin), static_cast<std::size_t>(n_hi - n_lo));
+  const long sig_len = std::max(8L, std::lround(o.signal_window_s * rate_hz));
+  double e = 0.0;
+  long c = 0;
+  for (long i = std::max(i0, nb.begin); i < std::min(nb.end(), i0 + sig_len); ++i, ++c)
+    e += static_cast<double>(nb.at(i)) * nb.at(i);
+  const double sig = c > 0 ? std::sqrt(e / static_cast<double>(c)) : 0.0;
+  // Digital silence has no noise floor: keep the ratio finite (at most 120 dB).
+  const double floor = std::max(m.noise_rms, 1e-6 * sig);
+  m.snr_db = sig > 0.0 ? 20.0 * std::log10(sig / floor) : -120.0;
+  const long lvl_len = std::max(1L, std::lround(o.level_window_s * rate_hz));
+  const long xs = static_cast<long>(x.size());
+  for (long i = std::clamp(i0 - 1, 0L, xs); i < std::min(xs, i0 + lvl_len); ++i)
+    m.amplitude = std::max(m.amplitude, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
+  return m;
+}
+
+// Robust spread (1.4826 median |.|) of <w[l, l + L), g> over the template starts l of the noise
+// window before `onset` (timing.hpp: the noise term). 0 when the window is too short.
+double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, double onset,
+                      double rate_hz, const TimingOptions& o) {
+  const long L = static_cast<long>(g.size());
+  const long i0 = static_cast<long>(std::floor(onset)) + 1;
+  const long guard = std::max(2L, std::lround(o.noise_guard_s * rate_hz));
+  const long noise_len = std::max(16L, std::lround(o.noise_window_s * rate_hz));
+  const long hi = std::max(nb.begin, i0 - guard) - L;
+  const long lo = std::max(nb.begin, i0 - guard - noise_len);
+  std::vector<double> p;
+  for (long l = lo; l <= hi; ++l) {
+    double acc = 0.0;
+    for (long j = 0; j < L; ++j) acc += g[static_cast<std::size_t>(j)] * nb.at(l + j);
+    p.push_back(std::fabs(acc));
+  }
+  if (p.size() < 8) return 0.0;
+  const auto mid = p.begin() + static_cast<std::ptrdiff_t>(p.size() / 2);
+  std::nth_element(p.begin(), mid, p.end());
+  return 1.4826 * *mid;
+}
+
+// Normalised cross-correlation of the template h (energy hh) with nb at template start l.
+double NccAt(const Neighbourhood& nb, const std::vector<double>& h, double hh, long l) {
+  double xy = 0.0, yy = 0.0;
+  for (std::size_t j = 0; j < h.size(); ++j) {
+    const double y = nb.at(l + static_cast<long>(j));
+    xy += h[j] * y;
+    yy += y * y;
+  }
+  return yy > 0.0 && hh > 0.0 ? xy / std::sqrt(hh * yy) : 0.0;
+}
+
+struct LagChoice {
+  long lag = 0;
+  double ncc = -2.0;
+  long rival_lag = 0;       // the best lag outside the chosen peak's main lobe
+  double rival_ncc = -2.0;  // its NCC (-2: none)
+};
+
+// Integer template start with the best NCC: near the expected start s0 (+- near) unless a
+// farther one (in [s0 - far, s0 + 2 near]) is better by `margin` (ringing and echoes match too).
+// Also the best rival outside the chosen peak's main lobe (for the ambiguity term).
+LagChoice BestLag(const Neighbourhood& nb, const std::vector<double>& h, double hh, long s0,
+                  long near, long far, double margin) {
+  const long lo = s0 - far, hi = s0 + 2 * near;
+  std::vector<double> c(static_cast<std::size_t>(hi - lo + 1));
+  for (long l = lo; l <= hi; ++l) c[static_cast<std::size_t>(l - lo)] = NccAt(nb, h, hh, l);
+  auto at = [&](long l) { return c[static_cast<std::size_t>(l - lo)]; };
+  LagChoice best, far_best;
+  best.lag = far_best.lag = s0;
+  for (long l = lo; l <= hi; ++l) {
+    LagChoice& slot = std::labs(l - s0) <= near ? best : far_best;
+    if (at(l) > slot.ncc) {
+      slot.ncc = at(l);
+      slot.lag = l;
+    }
+  }
+  if (far_best.ncc > best.ncc + margin) best = far_best;
+  // Main lobe: walk down from the peak to the first local minimum on each side.
+  long a = best.lag, b = best.lag;
+  while (a > lo && at(a - 1) < at(a)) --a;
+  while (b < hi && at(b + 1) < at(b)) ++b;
+  for (long l = std::max(lo, s0 - near); l <= std::min(hi, s0 + near); ++l)
+    if ((l < a || l > b) && at(l) > best.rival_ncc) {
+      best.rival_ncc = at(l);
+      best.rival_lag = l;
+    }
+  return best;
+}
+
+}  // namespace
+
+bool TimingOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (lpc_order < 0 || lpc_order > 256)
+    return fail("TimingOptions::lpc_order = " + std::to_string(lpc_order) + ": must be 0..256");
+  for (const auto& [name, v] :
+       {std::pair<const char*, double>{"fit_before_s", fit_before_s},
+        {"fit_after_s", fit_after_s},
+        {"lead_s", lead_s},
+        {"far_search_s", far_search_s},
+        {"far_ncc_margin", far_ncc_margin},
+        {"noise_guard_s", noise_guard_s},
+        {"ambiguity_gain", ambiguity_gain},
+        {"resolution_samples", resolution_samples},
+        {"resolution_s", resolution_s},
+        {"shape_s_per_neper", shape_s_per_neper},
+        {"noise_gain", noise_gain}})
+    if (!(v >= 0.0) || !std::isfinite(v))
+      return fail(std::string("TimingOptions::") + name + " = " + std::to_string(v) +
+                  ": must be a finite number >= 0");
+  for (const auto& [name, v] : {std::pair<const char*, double>{"template_s", template_s},
+                                {"search_s", search_s},
+                                {"aic_pre_s", aic_pre_s},
+                                {"aic_post_s", aic_post_s},
+                                {"noise_window_s", noise_window_s},
+                                {"signal_window_s", signal_window_s},
+                                {"level_window_s", level_window_s},
+                                {"aic_sigma_gain", aic_sigma_gain}})
+    if (!(v > 0.0) || !std::isfinite(v) || v > 1.0)
+      return fail(std::string("TimingOptions::") + name + " = " + std::to_string(v) +
+                  ": must be in (0, 1]");
+  if (!(min_template_ncc > 0.0) || min_template_ncc > 1.0)
+    return fail("TimingOptions::min_template_ncc = " + std::to_string(min_template_ncc) +
+                ": must be in (0, 1]");
+  return true;
+}
+
+std::vector<double> NeighbourhoodPredictor(const std::vector<float>& x,
+                                           const std::vector<long>& anchors, int order,
+                                           long before, long after) {
+  if (order <= 0) return {1.0};
+  const long n = static_cast<long>(x.size());
+  std::vector<double> r(static_cast<std::size_t>(order) + 1, 0.0), rw(r.size());
+  long used = 0;
+  for (long a : anchors) {
+    const long lo = std::max(0L, a - before), hi = std::min(n, a + after);
+    if (hi - lo <= 4L * order) continue;
+    for (int lag = 0; lag <= order; ++lag) {
+      double acc = 0.0;
+      for (long i = lo + lag; i < hi; ++i)
+        acc += static_cast<double>(x[static_cast<std::size_t>(i)]) * x[static_cast<std::size_t>(i - lag)];
+      rw[static_cast<std::size_t>(lag)] = acc;
+    }
+    if (!(rw[0] > 0.0)) continue;
+    // Each neighbourhood counts once, whatever its level.
+    for (std::size_t k = 0; k < r.size(); ++k) r[k] += rw[k] / rw[0];
+    used += hi - lo;
+  }
+  if (!(r[0] > 0.0)) return {1.0};
+  // White-noise correction (-60 dB) keeps the predictor stable on pure tones (Makhoul 1975,
+  // Proc. IEEE 63(4), sec. III-D).
+  r[0] *= 1.0 + 1e-6;
+  (void)used;
+  return LevinsonDurbin(r, order);
+}
+
+std::vector<float> WhitenSegment(const std::vector<float>& x, const std::vector<double>& a,
+                                 long begin, long end) {
+  std::vector<float> out(static_cast<std::size_t>(std::max(0L, end - begin)), 0.0f);
+  const long n = static_cast<long>(x.size());
+  for (long i = begin; i < end; ++i) {
+    double acc = 0.0;
+    for (std::size_t j = 0; j < a.size(); ++j) {
+      const long m = i - static_cast<long>(j);
+      if (m >= 0 && m < n) acc += a[j] * x[static_cast<std::size_t>(m)];
+    }
+    out[static_cast<std::size_t>(i - begin)] = static_cast<float>(acc);
+  }
+  return out;
+}
+
+double InterpolatedPeak(const std::vector<double>& c, std::size_t at, double* peak) {
+  const long size = static_cast<long>(c.size());
+  auto f = [&](double t) {
+    double acc = 0.0;
+    const long m0 = static_cast<long>(std::floor(t));
+    for (long m = std::max(0L, m0 - kSincHalf + 1); m <= std::min(size - 1, m0 + kSincHalf); ++m)
+      acc += c[static_cast<std::size_t>(m)] * WindowedSinc(t - static_cast<double>(m));
+    return acc;
+  };
+  const double centre = static_cast<double>(at);
+  double best_t = centre, best_v = f(centre);
+  for (int j = -kPeakGrid; j <= kPeakGrid; ++j) {
+    const double t = centre + static_cast<double>(j) / kPeakGrid;
+    const double v = f(t);
+    if (v > best_v) {
+      best_v = v;
+      best_t = t;
+    }
+  }
+  // Parabola through the fine-grid neighbours.
+  const double step = 1.0 / kPeakGrid;
+  const double vm = f(best_t - step), vp = f(best_t + step);
+  const double curv = vm - 2.0 * best_v + vp;
+  if (curv < 0.0) {
+    const double d = std::clamp(0.5 * (vm - vp) / curv, -0.5, 0.5);
+    best_t += d * step;
+    best_v = f(best_t);
+  }
+  *peak = best_v;
+  return best_t;
+}
+
+namespace {
+
+// Sizes (samples) the stages use, from the options and the rate.
+struct Geometry {
+  long tl, lead, near, far, aic_pre, aic_post, before, after;
+  Geometry(const TimingOptions& o, double rate_hz) {
+    auto samples = [&](double s) { return std::max(1L, std::lround(s * rate_hz)); };
+    tl = std::max(8L, samples(o.template_s));
+    lead = samples(o.lead_s);
+    near = samples(o.search_s);
+    far = samples(o.far_search_s);
+    aic_pre = std::max(16L, samples(o.aic_pre_s));
+    aic_post = std::max(8L, samples(o.aic_post_s));
+    before = std::max({far + lead, aic_pre, samples(o.noise_window_s + o.noise_guard_s)}) + near +
+             2 * kSincHalf + 2;
+    after = std::max({2 * near + tl, aic_post, samples(o.level_window_s)}) + 2 * kSincHalf;
+  }
+};
+
+// AIC pick in the window [anchor - aic_pre, anchor + aic_post) of one neighbourhood.
+AicPick AicAround(const Neighbourhood& nb, long anchor, const Geometry& g) {
+  const long b = std::max(nb.begin, anchor - g.aic_pre);
+  return PickAic(nb.w, static_cast<std::size_t>(b - nb.begin),
+                 static_cast<std::size_t>(anchor + g.aic_post - nb.begin));
+}
+
+// The template: the whitened waveform of one member from `lead` before its AIC onset, and its
+// derivative (central differences).
+struct Template {
+  std::size_t member = 0;
+  double t_ref = 0.0;  // onset sample (fractional) of the template impact
+  long start = 0;      // sample where the template starts
+  std::vector<double> h, hd;
+  double hh = 0.0, dd = 0.0;
+  bool usable() const { return hh > 0.0 && dd > 0.0; }
+};
+
+Template MakeTemplate(const std::vector<Neighbourhood>& nb, const std::vector<long>& anchors,
+                      std::size_t member, const Geometry& g) {
+  Template t;
+  t.member = member;
+  const Neighbourhood& tn = nb[member];
+  t.t_ref = static_cast<double>(anchors[member]) - 0.5;
+  const AicPick p = AicAround(tn, anchors[member], g);
+  if (p.valid) t.t_ref = p.index + static_cast<double>(tn.begin);
+  t.start = std::lround(t.t_ref) - g.lead;
+  t.h.resize(static_cast<std::size_t>(g.tl));
+  t.hd.resize(t.h.size());
+  for (long j = 0; j < g.tl; ++j) {
+    const std::size_t i = static_cast<std::size_t>(j);
+    t.h[i] = tn.at(t.start + j);
+    t.hd[i] = 0.5 * (tn.at(t.start + j + 1) - tn.at(t.start + j - 1));
+    t.hh += t.h[i] * t.h[i];
+    t.dd += t.hd[i] * t.hd[i];
+  }
+  return t;
+}
+
+// One member timed: onset (fractional sample), variance (samples^2) and the model's parts.
+struct MemberTime {
+  double onset = 0.0;
+  double sigma2 = 0.0;
+};
+
+// Template timing of member k (TimingOptions, the sigma model); false when it does not match
+// (NCC below min_template_ncc).
+bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, const Template& t,
+                    const Geometry& g, double rate_hz, const TimingOptions& o, MemberTime* out,
+                    TimingDetail* d) {
+  const LagChoice lc = BestLag(nb, t.h, t.hh, anchor - g.lead, g.near, g.far, o.far_ncc_margin);
+  d->ncc = lc.ncc;
+  if (!is_template && lc.ncc < o.min_template_ncc) return false;
+  // Sub-sample lag: band-limited interpolation of the NCC around the integer peak.
+  std::vector<double> c(static_cast<std::size_t>(2 * kSincHalf + 1));
+  for (long q = -kSincHalf; q <= kSincHalf; ++q)
+    c[static_cast<std::size_t>(q + kSincHalf)] = NccAt(nb, t.h, t.hh, lc.lag + q);
+  double peak = lc.ncc;
+  const double frac =
+      InterpolatedPeak(c, static_cast<std::size_t>(kSincHalf), &peak) - static_cast<double>(kSincHalf);
+  d->ncc = std::clamp(std::max(peak, lc.ncc), -1.0, 1.0);
+  d->by_template = true;
+  out->onset = is_template ? t.t_ref : t.t_ref + (static_cast<double>(lc.lag - t.start) + frac);
+  // Ambiguity: noise moves each lag's NCC by about s_c = sqrt((1 - c^2) / L); a rival peak wins
+  // with probability p = P(N(0, 2 s_c^2) > c1 - c2), and then the time is off by the lag
+  // difference.
+  if (!is_template && lc.rival_ncc > -2.0) {
+    const double s_c =
+        std::sqrt(std::max(1e-12, (1.0 - d->ncc * d->ncc) / static_cast<double>(g.tl)));
+    const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc) / (2.0 * s_c));
+    d->sigma_ambiguity = o.ambiguity_gain * std::sqrt(p) * static_cast<double>(std::labs(lc.rival_lag - lc.lag));
+  }
+  // Scale of this member relative to the template (its fitted amplitude).
+  double xy = 0.0;
+  const long l0 = std::lround(out->onset) - g.lead;
+  for (long j = 0; j < g.tl; ++j) xy += t.h[static_cast<std::size_t>(j)] * nb.at(l0 + j);
+  const double a = xy / t.hh;
+  d->level_ratio = a;
+  // Noise: the spread of the noise's projection on h' before the onset (not assumed white):
+  // the delay estimate moves by <n, h'> / (a |h'|^2).
+  d->sigma_noise = o.noise_gain * ProjectedNoise(nb, t.hd, out->onset, rate_hz, o) /
+                   std::max(std::fabs(a) * t.dd, 1e-300);
+  d->sigma_shape =
+      o.shape_s_per_neper * rate_hz * std::fabs(std::log(std::max(std::fabs(a), 1e-6)));
+  out->sigma2 = d->sigma_noise * d->sigma_noise + d->sigma_ambiguity * d->sigma_ambiguity +
+                d->sigma_shape * d->sigma_shape;
+  return true;
+}
+
+// A member that does not match the template: its AIC pick can land anywhere in the window (it
+// jumps between rises when the onset is weak), so its sigma is the window's (uniform).
+MemberTime TimeByAic(const Neighbourhood& nb, long anchor, const Geometry& g,
+                     const TimingOptions& o, TimingDetail* d) {
+  MemberTime m;
+  m.onset = static_cast<double>(anchor) - 0.5;
+  const AicPick p = AicAround(nb, anchor, g);
+  if (p.valid) m.onset = p.index + static_cast<double>(nb.begin);
+  d->sigma_noise = o.aic_sigma_gain * static_cast<double>(g.aic_pre + g.aic_post) / std::sqrt(12.0);
+  m.sigma2 = d->sigma_noise * d->sigma_noise;
+  return m;
+}
+
+}  // namespace
+
+TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence* seq,
+                          const TimingOptions& o) {
+  std::string why;
+  if (!o.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz))
+    throw Error(ErrorCode::kBadParameter,
+                "TimeSequence: sample rate " + std::to_string(rate_hz) + " Hz must be > 0");
+  TimingResult res;
+  std::vector<Impact>& imps = seq->impacts;
+  const std::size_t n = imps.size();
+  if (n == 0 || x.empty()) return res;
+  const Geometry g(o, rate_hz);
+
+  // 1. Predictor from the members' neighbourhoods.
+  std::vector<long> anchors(n);
+  for (std::size_t k = 0; k < n; ++k) anchors[k] = std::lround(imps[k].time_s * rate_hz);
+  res.predictor = NeighbourhoodPredictor(x, anchors, o.lpc_order,
+                                         std::lround(o.fit_before_s * rate_hz),
+                                         std::lround(o.fit_after_s * rate_hz));
+  // 2. Local whitening around each member.
+  std::vector<Neighbourhood> nb(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    nb[k].begin = anchors[k] - g.before;
+    nb[k].w = WhitenSegment(x, res.predictor, anchors[k] - g.before, anchors[k] + g.after);
+  }
+  // 3-4. Template: the member with the highest local SNR at its detected time (ties: earliest).
+  std::size_t tk = 0;
+  double best_snr = -1e300;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double snr = Measure(nb[k], x, static_cast<double>(anchors[k]) - 0.5, rate_hz, o).snr_db;
+    if (snr > best_snr) {
+      best_snr = snr;
+      tk = k;
+    }
+  }
+  res.template_member = static_cast<int>(tk);
+  const Template tpl = MakeTemplate(nb, anchors, tk, g);
+  // 5-6. Each member: template lag (or AIC), then the sigma model and the local measures.
+  res.detail.resize(n);
+  const double resolution = std::hypot(o.resolution_samples, o.resolution_s * rate_hz);
+  for (std::size_t k = 0; k < n; ++k) {
+    TimingDetail& d = res.detail[k];
+    MemberTime mt;
+    if (!tpl.usable() || !TimeByTemplate(nb[k], anchors[k], k == tk, tpl, g, rate_hz, o, &mt, &d))
+      mt = TimeByAic(nb[k], anchors[k], g, o, &d);
+    d.sigma_resolution = resolution;
+    const LocalMeasures m = Measure(nb[k], x, mt.onset, rate_hz, o);
+    d.noise_rms = m.noise_rms;
+    Impact& im = imps[k];
+    im.time_s = mt.onset / rate_hz;
+    im.sigma_s = std::sqrt(mt.sigma2 + resolution * resolution) / rate_hz;
+    im.snr_db = m.snr_db;
+    im.amplitude = m.amplitude;
+    im.score = std::clamp(d.ncc, 0.0, 1.0);
+  }
+  // The template's lag to itself is exact, but its shape differs from the others' as theirs
+  // differs from it: its sigma relative to the sequence is the typical sigma of the others.
+  std::vector<double> others;
+  for (std::size_t k = 0; k < n; ++k)
+    if (k != tk && res.detail[k].by_template) others.push_back(imps[k].sigma_s);
+  if (!others.empty()) {
+    const auto mid = others.begin() + static_cast<std::ptrdiff_t>(others.size() / 2);
+    std::nth_element(others.begin(), mid, others.end());
+    imps[tk].sigma_s = std::max(imps[tk].sigma_s, *mid);
+  }
+  return res;
+}
+
+}  // namespace bouncecal

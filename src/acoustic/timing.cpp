@@ -117,12 +117,14 @@ struct LagChoice {
   double rival_ncc = -2.0;  // its NCC (-2: none)
 };
 
-// Integer template start with the best NCC: near the expected start s0 (+- near) unless a
-// farther one (in [s0 - far, s0 + 2 near]) is better by `margin` (ringing and echoes match too).
-// Also the best rival outside the chosen peak's main lobe (for the ambiguity term).
+// Integer template start: the best NCC within +- near of the expected start s0, unless one
+// farther out (within +- far) is better by `margin` (ringing and echoes also match, so the
+// detection's time is preferred). The best rival outside the chosen peak's main lobe is searched
+// in all of +- far: the detection's own time can be off by a few tenths of a ms on weak impacts,
+// and whichever peak it pointed to, the ambiguity term then covers the other.
 LagChoice BestLag(const Neighbourhood& nb, const std::vector<double>& h, double hh, long s0,
                   long near, long far, double margin) {
-  const long lo = s0 - far, hi = s0 + 2 * near;
+  const long lo = s0 - far, hi = s0 + far;
   std::vector<double> c(static_cast<std::size_t>(hi - lo + 1));
   for (long l = lo; l <= hi; ++l) c[static_cast<std::size_t>(l - lo)] = NccAt(nb, h, hh, l);
   auto at = [&](long l) { return c[static_cast<std::size_t>(l - lo)]; };
@@ -140,7 +142,7 @@ LagChoice BestLag(const Neighbourhood& nb, const std::vector<double>& h, double 
   long a = best.lag, b = best.lag;
   while (a > lo && at(a - 1) < at(a)) --a;
   while (b < hi && at(b + 1) < at(b)) ++b;
-  for (long l = std::max(lo, s0 - near); l <= std::min(hi, s0 + near); ++l)
+  for (long l = lo; l <= hi; ++l)
     if ((l < a || l > b) && at(l) > best.rival_ncc) {
       best.rival_ncc = at(l);
       best.rival_lag = l;
@@ -278,9 +280,9 @@ struct Geometry {
     far = samples(o.far_search_s);
     aic_pre = std::max(16L, samples(o.aic_pre_s));
     aic_post = std::max(8L, samples(o.aic_post_s));
-    before = std::max({far + lead, aic_pre, samples(o.noise_window_s + o.noise_guard_s)}) + near +
+    before = std::max({far + lead, aic_pre, samples(o.noise_window_s + o.noise_guard_s)}) +
              2 * kSincHalf + 2;
-    after = std::max({2 * near + tl, aic_post, samples(o.level_window_s)}) + 2 * kSincHalf;
+    after = std::max({far + tl, aic_post, samples(o.level_window_s)}) + 2 * kSincHalf;
   }
 };
 
@@ -347,14 +349,17 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
   d->ncc = std::clamp(std::max(peak, lc.ncc), -1.0, 1.0);
   d->by_template = true;
   out->onset = is_template ? t.t_ref : t.t_ref + (static_cast<double>(lc.lag - t.start) + frac);
-  // Ambiguity: noise moves each lag's NCC by about s_c = sqrt((1 - c^2) / L); a rival peak wins
-  // with probability p = P(N(0, 2 s_c^2) > c1 - c2), and then the time is off by the lag
-  // difference.
+  // Ambiguity: noise moves each lag's NCC by s_c = spread(<n, h>) / (|h| |y|) (measured on the
+  // noise window before the onset, like the noise term); a rival peak wins with probability
+  // p = P(N(0, 2 s_c^2) > c1 - c2), and then the time is off by the lag difference.
   if (!is_template && lc.rival_ncc > -2.0) {
+    double yy = 0.0;
+    for (long j = 0; j < g.tl; ++j) yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
     const double s_c =
-        std::sqrt(std::max(1e-12, (1.0 - d->ncc * d->ncc) / static_cast<double>(g.tl)));
+        std::max(1e-12, ProjectedNoise(nb, t.h, out->onset, rate_hz, o) / std::sqrt(t.hh * yy));
     const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc) / (2.0 * s_c));
-    d->sigma_ambiguity = o.ambiguity_gain * std::sqrt(p) * static_cast<double>(std::labs(lc.rival_lag - lc.lag));
+    d->sigma_ambiguity =
+        o.ambiguity_gain * std::sqrt(p) * static_cast<double>(std::labs(lc.rival_lag - lc.lag));
   }
   // Scale of this member relative to the template (its fitted amplitude).
   double xy = 0.0;
@@ -442,6 +447,23 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
     im.snr_db = m.snr_db;
     im.amplitude = m.amplitude;
     im.score = std::clamp(d.ncc, 0.0, 1.0);
+  }
+  // Anchor: the template's own AIC pick fixes the sequence's constant offset, but which member
+  // is the template can change with the audio around the sequence (SNRs within a fraction of a
+  // dB). The median over the members of (own AIC pick - template time) does not: shift every
+  // time by it, so the offset is a property of the whole sequence.
+  std::vector<double> shifts;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!res.detail[k].by_template) continue;
+    const AicPick p = AicAround(nb[k], std::lround(imps[k].time_s * rate_hz), g);
+    if (p.valid) shifts.push_back(p.index + static_cast<double>(nb[k].begin) - imps[k].time_s * rate_hz);
+  }
+  if (!shifts.empty()) {
+    std::sort(shifts.begin(), shifts.end());
+    const std::size_t m = shifts.size() / 2;
+    const double shift = shifts.size() % 2 ? shifts[m] : 0.5 * (shifts[m - 1] + shifts[m]);
+    for (std::size_t k = 0; k < n; ++k)
+      if (res.detail[k].by_template) imps[k].time_s += shift / rate_hz;
   }
   // The template's lag to itself is exact, but its shape differs from the others' as theirs
   // differs from it: its sigma relative to the sequence is the typical sigma of the others.

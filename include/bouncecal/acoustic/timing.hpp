@@ -34,7 +34,8 @@
 //              shape_s_per_neper |ln a|. (A residual-energy mismatch term, |y - a h|^2 spread over
 //              the template, was tried: its calibrated gain was 0 once this term was in.)
 //   ambiguity: a rival correlation peak outside the chosen one's main lobe, within the NCC's noise
-//              (s_c = sqrt((1 - c^2) / L)) of it, wins with probability
+//              (s_c = spread(<n, h>) / (|h| |y|), measured like the noise term) of it, wins with
+//              probability
 //              p = erfc((c1 - c2) / (2 s_c)) / 2 and then moves the time by the lag difference
 //              dl: sqrt(p) |dl|, times ambiguity_gain;
 //   resolution: resolution_s (and resolution_samples): interpolation of the correlation peak;
@@ -64,7 +65,8 @@ struct TimingOptions {
   double template_s = 0.0015;    // template length
   double lead_s = 1e-4;          // the template starts this long before its onset
   double search_s = 3e-4;        // lag search: +- this around the detection's time ...
-  double far_search_s = 1.5e-3;  // ... or, if clearly better, up to this far before it
+  double far_search_s = 1.5e-3;  // ... or, if clearly better, up to this far (and rivals for the
+                                 // ambiguity term are sought in all of it)
   double far_ncc_margin = 0.15;  // "clearly better": NCC higher by this much
   double aic_pre_s = 0.002;      // AIC window before / after the detection's time
   double aic_post_s = 0.0008;
@@ -76,9 +78,9 @@ struct TimingOptions {
   // Sigma model constants, calibrated against exact truth on the six synthetic presets x 6 seeds
   // (tools/bench_detect --dump, then a grid fit minimising the largest |log RMS(err/sigma)| over
   // the presets; README "Timing uncertainty").
-  double noise_gain = 0.8;          // the robust projected-noise spread slightly overstates
-  double ambiguity_gain = 2.0;
-  double shape_s_per_neper = 2e-6;  // s per neper of level difference to the template
+  double noise_gain = 0.6;          // the robust projected-noise spread slightly overstates
+  double ambiguity_gain = 1.5;
+  double shape_s_per_neper = 3e-6;  // s per neper of level difference to the template
   double resolution_samples = 0.0;
   double resolution_s = 2e-6;
   double aic_sigma_gain = 1.0;

@@ -4,10 +4,12 @@
 set -euo pipefail
 pkgs=(
   build-essential cmake pkg-config
-  libfftw3-dev libsndfile1-dev libceres-dev libeigen3-dev libcli11-dev
+  libfftw3-dev libsndfile1-dev libavformat-dev libavcodec-dev libavutil-dev libswresample-dev
+  libceres-dev libeigen3-dev libcli11-dev
   libboost-dev nlohmann-json3-dev libtomlplusplus-dev libmuparser-dev libssl-dev
   libgtest-dev libgmock-dev
   aubio-tools
+  ffmpeg
 )
 missing=()
 for p in "${pkgs[@]}"; do

@@ -147,6 +147,26 @@ double Quantile(std::vector<float>* v, double p) {
   return (*v)[k];
 }
 
+// NaN/Inf samples are an error naming the channel and frame; each channel's clipping report.
+void CheckSamples(Audio* a) {
+  const std::string& path = a->info.path;
+  for (std::size_t c = 0; c < a->channels.size(); ++c) {
+    const auto& x = a->channels[c];
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      if (!std::isfinite(x[i])) {
+        char msg[160];
+        std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %zu (%.6f s)",
+                      std::isnan(x[i]) ? "NaN" : "infinite", c, i,
+                      static_cast<double>(i) / a->info.sample_rate_hz);
+        throw Error(ErrorCode::kBadSamples, path + msg);
+      }
+    }
+  }
+  a->clipping.clear();
+  for (std::size_t c = 0; c < a->channels.size(); ++c)
+    a->clipping.push_back(AnalyzeClipping(a->channels[c], static_cast<int>(c)));
+}
+
 }  // namespace
 
 ClippingReport AnalyzeClipping(const std::vector<float>& x, int channel) {
@@ -200,8 +220,19 @@ Audio ReadAudio(const std::string& path) {
   SF_INFO sfinfo{};
   SndfilePtr f(sf_open(path.c_str(), SFM_READ, &sfinfo));
   if (!f) {
-    throw Error(ErrorCode::kNotAudio,
-                path + ": not an audio file libsndfile can read (" + sf_strerror(nullptr) + ")");
+    const std::string sf_why = sf_strerror(nullptr);
+    Audio decoded;
+    try {
+      decoded = ReadAudioFfmpeg(path);
+    } catch (const Error& e) {
+      std::string ff_why = e.what();
+      if (ff_why.rfind(path + ": ", 0) == 0) ff_why = ff_why.substr(path.size() + 2);
+      throw Error(ErrorCode::kNotAudio, path + ": not an audio file libsndfile or FFmpeg can read "
+                                               "(libsndfile: " +
+                                            sf_why + "; FFmpeg: " + ff_why + ")");
+    }
+    CheckSamples(&decoded);
+    return decoded;
   }
   Audio a;
   a.info.path = path;
@@ -259,19 +290,7 @@ Audio ReadAudio(const std::string& path) {
   }
   a.info.frames = read_total;
 
-  for (int c = 0; c < nch; ++c) {
-    const auto& x = a.channels[static_cast<std::size_t>(c)];
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      if (!std::isfinite(x[i])) {
-        char msg[160];
-        std::snprintf(msg, sizeof(msg), ": %s sample in channel %d at frame %zu (%.6f s)",
-                      std::isnan(x[i]) ? "NaN" : "infinite", c, i,
-                      static_cast<double>(i) / a.info.sample_rate_hz);
-        throw Error(ErrorCode::kBadSamples, path + msg);
-      }
-    }
-    a.clipping.push_back(AnalyzeClipping(x, c));
-  }
+  CheckSamples(&a);
   return a;
 }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cctype>
 #include <cstdio>
 
 #include "bouncecal/acoustic/onsets.hpp"
@@ -412,10 +413,65 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
                                   " samples at its extreme value); onsets are still usable, "
                                   "amplitudes are not",
                               -1});
+  if (audio.info.lossy) {
+    const double delay_ms = 1e3 * static_cast<double>(audio.info.codec_delay_samples) / rate;
+    res.warnings.push_back(
+        {"codec_delay",
+         "decoded from lossy " + audio.info.subtype + " (" + audio.info.format + "): " +
+             (audio.info.codec_delay_samples > 0
+                  ? std::to_string(audio.info.codec_delay_samples) + " priming samples (" +
+                        Fmt("%.2f", delay_ms) + " ms) " +
+                        (audio.info.codec_delay_trimmed
+                             ? "were trimmed as the file says"
+                             : "are declared but were not trimmed: times are late by that much")
+                  : std::string("no codec delay stated")) +
+             "; lossy coding smears onsets (pre-echo), so a constant offset of up to a few ms "
+             "is possible (intervals are unaffected)",
+         -1});
+  }
   ChannelChoiceWarning(res, &res.warnings);
   res.warnings.insert(res.warnings.end(), chosen.warnings.begin(), chosen.warnings.end());
   FlagWarnings(res.sequences, &res.warnings);
   return res;
+}
+
+SequenceChoice ParseSequenceChoice(const std::string& text) {
+  SequenceChoice c;
+  if (text == "main") return c;
+  if (text == "all") {
+    c.kind = SequenceChoice::Kind::kAll;
+    return c;
+  }
+  if (!text.empty() && text.size() < 7 &&
+      std::all_of(text.begin(), text.end(), [](unsigned char ch) { return std::isdigit(ch); })) {
+    c.kind = SequenceChoice::Kind::kIndex;
+    c.index = std::stoi(text);
+    return c;
+  }
+  throw Error(ErrorCode::kUsage, "sequence choice '" + text +
+                                     "': expected main, all or a 0-based sequence index");
+}
+
+std::vector<int> ChooseSequences(const std::vector<Sequence>& sequences,
+                                 const SequenceChoice& choice, const std::string& name) {
+  const int n = static_cast<int>(sequences.size());
+  switch (choice.kind) {
+    case SequenceChoice::Kind::kMain:
+      return n > 0 ? std::vector<int>{LongestSequence(sequences)} : std::vector<int>{};
+    case SequenceChoice::Kind::kAll: {
+      std::vector<int> all(static_cast<std::size_t>(n));
+      for (int s = 0; s < n; ++s) all[static_cast<std::size_t>(s)] = s;
+      return all;
+    }
+    case SequenceChoice::Kind::kIndex:
+      if (choice.index >= n)
+        throw Error(ErrorCode::kUsage, name + ": sequence " + std::to_string(choice.index) +
+                                           " requested, but there " + (n == 1 ? "is " : "are ") +
+                                           std::to_string(n) + " sequence" + (n == 1 ? "" : "s") +
+                                           " (0-based)");
+      return {choice.index};
+  }
+  return {};
 }
 
 }  // namespace bouncecal

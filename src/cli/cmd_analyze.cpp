@@ -31,14 +31,15 @@
 #include "bouncecal/fit/kinematics.hpp"
 #include "commands.hpp"
 #include "output.hpp"
+#include "detect_flags.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
 namespace {
 
 struct AnalyzeFlags {
-  std::string file;
-  std::string channel = "auto";
+  std::vector<std::string> files;
+  DetectFlags detect;
   SceneFlags scene;
   std::optional<double> contact_time_s;
   bool json = false;
@@ -117,46 +118,35 @@ std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
   return o.str();
 }
 
-void Run(const AnalyzeFlags& flags) {
-  // The scene first: it is cheap and its errors should not wait for the detector.
-  Scene scene = ResolveScene(flags.scene);
-  if (flags.contact_time_s) scene.effects.contact_duration = true;  // a given duration is used
-  AnalysisOptions aopt;
-  aopt.use_drop = !flags.scene.scene_file.empty() || flags.scene.height_m.has_value() ||
-                  flags.scene.impact_speed_m_s.has_value();
-  if (flags.contact_time_s) aopt.contact_time_s = *flags.contact_time_s;
-  std::string why;
-  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
-
-  const ChannelSelection selection = ParseChannelSelection(flags.channel);
-  const Audio audio = ReadAudio(flags.file);
-  DetectOptions dopt;
-  dopt.channel = selection;
-  const DetectionResult det = DetectImpacts(audio, dopt);
-  if (det.main_sequence < 0 || det.sequences.empty()) {
-    throw Error(ErrorCode::kNoBounces, flags.file + ": no bounce sequence found");
-  }
+// One chosen sequence of one recording; JSON goes to *json (when --json), text to stdout.
+void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions& aopt,
+            const std::string& file, const LoadedRecording& loaded, int chosen,
+            nlohmann::json* json_out) {
+  const DetectionResult& det = loaded.result;
+  const AudioInfo& info = det.audio;
+  const Sequence& seq = det.sequences.at(static_cast<std::size_t>(chosen));
   Analysis an;
   try {
-    an = AnalyzeBounces(det.main(), scene, aopt);
+    an = AnalyzeBounces(seq, scene, aopt);
   } catch (const Error& e) {
-    if (e.code() == ErrorCode::kNoBounces) throw Error(e.code(), flags.file + ": " + e.what());
+    if (e.code() == ErrorCode::kNoBounces) throw Error(e.code(), file + ": " + e.what());
     throw;
   }
   std::vector<Warning> warnings = det.warnings;
   for (const Warning& w : an.warnings) warnings.push_back(w);
   const Summary sum = Summarize(an);
-  const Sequence& seq = det.main();
 
   if (flags.json) {
     nlohmann::json j;
-    j["file"] = flags.file;
-    j["sample_rate_hz"] = audio.info.sample_rate_hz;
-    j["channels"] = audio.info.channels;
+    j["file"] = file;
+    j["sample_rate_hz"] = Num(info.sample_rate_hz);
+    j["channels"] = info.channels;
     j["channel"] = det.channel >= 0 ? nlohmann::json(det.channel) : nlohmann::json("mix");
     j["scene"] = SceneJson(scene, an, aopt.use_drop);
     j["sequence"] = {{"n_sequences", det.sequences.size()},
                      {"main_sequence", det.main_sequence},
+                     {"sequence", chosen},
+                     {"source", loaded.impacts_file.empty() ? "detection" : "impacts_file"},
                      {"n_impacts", seq.impacts.size()},
                      {"missed_after", seq.missed_after},
                      {"end_reason", seq.end_reason}};
@@ -188,7 +178,7 @@ void Run(const AnalyzeFlags& flags) {
                     {"e_min", Num(sum.e_min)},
                     {"e_max", Num(sum.e_max)}};
     j["warnings"] = WarningsJson(warnings);
-    std::cout << j.dump(2) << "\n";
+    json_out->push_back(j);
     return;
   }
 
@@ -208,10 +198,10 @@ void Run(const AnalyzeFlags& flags) {
     return;
   }
 
-  o << flags.file << ": " << Fixed(audio.info.sample_rate_hz, 0) << " Hz, " << audio.info.channels
-    << " channel(s), "
+  o << file << (loaded.chosen.size() > 1 ? " sequence " + std::to_string(chosen) : std::string())
+    << ": " << Fixed(info.sample_rate_hz, 0) << " Hz, " << info.channels << " channel(s), "
     << (det.channel >= 0 ? "channel " + std::to_string(det.channel) : std::string("mix"))
-    << " used; " << seq.impacts.size() << " impacts in the main sequence (of "
+    << " used; " << seq.impacts.size() << " impacts in the sequence (of "
     << det.sequences.size() << " sequence(s)), end: " << seq.end_reason << "\n";
   o << EffectsLine(scene, an, aopt.use_drop) << "\n\n";
   // "value +- sigma" pairs, "-" where unknown.
@@ -256,15 +246,57 @@ void Run(const AnalyzeFlags& flags) {
   std::cout << o.str();
 }
 
+void Run(const AnalyzeFlags& flags) {
+  // The scene first: it is cheap and its errors should not wait for the detector.
+  Scene scene = ResolveScene(flags.scene);
+  if (flags.contact_time_s) scene.effects.contact_duration = true;  // a given duration is used
+  AnalysisOptions aopt;
+  aopt.use_drop = !flags.scene.scene_file.empty() || flags.scene.height_m.has_value() ||
+                  flags.scene.impact_speed_m_s.has_value();
+  if (flags.contact_time_s) aopt.contact_time_s = *flags.contact_time_s;
+  std::string why;
+  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
+  MakeDetectOptions(flags.detect);  // flag errors before any work
+  const auto inputs = PairInputs(flags.files, flags.detect);
+  const bool several = inputs.size() > 1;
+  nlohmann::json all = nlohmann::json::array();
+  bool any_failed = false;
+  for (std::size_t n = 0; n < inputs.size(); ++n) {
+    const auto& [rec, imp] = inputs[n];
+    const std::string name = rec.empty() ? imp : rec;
+    try {
+      const LoadedRecording loaded = LoadRecording(rec, nullptr, imp, flags.detect);
+      for (int s : loaded.chosen) {
+        if (!flags.json && !flags.csv && (n > 0 || s != loaded.chosen.front())) std::cout << "\n";
+        RunOne(flags, scene, aopt, name, loaded, s, &all);
+      }
+    } catch (const Error& e) {
+      if (!several) throw;
+      any_failed = true;
+      std::fprintf(stderr, "bouncecal: %s\n", e.what());
+      if (flags.json)
+        all.push_back({{"file", name},
+                       {"error",
+                        {{"code", ErrorCodeName(e.code())},
+                         {"exit_code", e.exit_code()},
+                         {"message", e.what()}}}});
+    }
+  }
+  // One recording and one sequence: the object itself (the shape of one analysis).
+  if (flags.json) std::cout << (all.size() == 1 && !several ? all[0] : all).dump(2) << "\n";
+  if (any_failed)
+    throw Error(ErrorCode::kSomeFailed, "some recordings failed (see the messages above)");
+}
+
 }  // namespace
 
 void RegisterAnalyze(CLI::App& app) {
   auto flags = std::make_shared<AnalyzeFlags>();
   CLI::App* sub = app.add_subcommand(
       "analyze", "impacts -> per-bounce speeds, restitution e and energy loss eta (with sigmas)");
-  sub->add_option("FILE", flags->file, "recording (any format libsndfile reads)")->required();
-  sub->add_option("--channel", flags->channel, "channel: 0, 1, ... (0-based), mix or auto")
-      ->capture_default_str();
+  sub->add_option("FILE", flags->files,
+                  "recordings (any format libsndfile or FFmpeg reads; or none with --impacts)");
+  AddDetectFlags(sub, &flags->detect);
   AddSceneFlags(sub, &flags->scene, /*with_law=*/false);
   sub->add_option(
       "--contact-time", flags->contact_time_s,

@@ -25,6 +25,7 @@
 #include "bouncecal/io/provenance.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
+#include "detect_flags.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -42,7 +43,7 @@ struct CalibrateArgs {
   double loss_scale = 3.0;
   int max_iterations = 60;
   bool use_drop = false;
-  std::string channel = "auto";
+  DetectFlags detect;
   std::string output;
   bool force = false;
   bool json = false;
@@ -69,32 +70,33 @@ std::string CsvField(const std::string& s) {
   return out + "\"";
 }
 
-CalibrationInput Detect(const std::string& path, const ChannelSelection& channel) {
-  const Audio audio = ReadAudio(path);
-  DetectOptions d;
-  d.channel = channel;
-  const DetectionResult r = DetectImpacts(audio, d);
-  return {path, r.main()};
+// The drops (chosen sequences) of one recording / --impacts pair, as calibration inputs.
+std::vector<CalibrationInput> Detect(const std::pair<std::string, std::string>& input,
+                                     const DetectFlags& flags) {
+  std::vector<CalibrationInput> out;
+  for (Drop& d : DropsOf(input.first, input.second, flags))
+    out.push_back({d.name, std::move(d.sequence)});
+  return out;
 }
 
-// Detects every file on up to `jobs` threads; throws the first file's error in input order.
-std::vector<CalibrationInput> DetectAll(const std::vector<std::string>& files,
-                                        const ChannelSelection& channel, int jobs) {
-  std::vector<CalibrationInput> out(files.size());
-  std::vector<std::optional<Error>> errors(files.size());
+// Detects every input on up to `jobs` threads; throws the first input's error in input order.
+std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string, std::string>>& in,
+                                        const DetectFlags& flags, int jobs) {
+  std::vector<std::vector<CalibrationInput>> per(in.size());
+  std::vector<std::optional<Error>> errors(in.size());
   std::atomic<size_t> next{0};
   auto worker = [&]() {
-    for (size_t i = next++; i < files.size(); i = next++) {
+    for (size_t i = next++; i < in.size(); i = next++) {
       try {
-        out[i] = Detect(files[i], channel);
+        per[i] = Detect(in[i], flags);
       } catch (const Error& e) {
         errors[i] = e;
       } catch (const std::exception& e) {
-        errors[i] = Error(ErrorCode::kInternal, files[i] + ": " + e.what());
+        errors[i] = Error(ErrorCode::kInternal, in[i].first + ": " + e.what());
       }
     }
   };
-  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(files.size())));
+  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(in.size())));
   std::vector<std::thread> pool;
   for (int t = 1; t < n; ++t) pool.emplace_back(worker);
   worker();
@@ -102,6 +104,8 @@ std::vector<CalibrationInput> DetectAll(const std::vector<std::string>& files,
   for (auto& e : errors) {
     if (e) throw *e;
   }
+  std::vector<CalibrationInput> out;
+  for (auto& p : per) out.insert(out.end(), p.begin(), p.end());
   return out;
 }
 
@@ -155,10 +159,12 @@ nlohmann::json JsonRow(const std::string& file, const Calibration* c, const Erro
 }
 
 int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOptions& opts,
-             const ChannelSelection& channel) {
+             const std::vector<std::pair<std::string, std::string>>& inputs) {
   const auto law = CreateLaw(scene.law, scene);
   const std::vector<ParameterSpec> specs = law->Parameters();
-  const size_t n = a.files.size();
+  std::vector<std::string> names;
+  for (const auto& p : inputs) names.push_back(p.first.empty() ? p.second : p.first);
+  const size_t n = names.size();
   std::vector<std::optional<Calibration>> fits(n);
   std::vector<std::optional<Error>> errors(n);
   std::vector<bool> done(n, false);
@@ -173,9 +179,9 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
   auto line_for = [&](size_t i) {
     const Calibration* c = fits[i] ? &*fits[i] : nullptr;
     const Error* e = errors[i] ? &*errors[i] : nullptr;
-    if (a.csv) return CsvRow(a.files[i], specs, c, e);
-    if (a.json) return JsonRow(a.files[i], c, e).dump();
-    return a.files[i] + ": " +
+    if (a.csv) return CsvRow(names[i], specs, c, e);
+    if (a.json) return JsonRow(names[i], c, e).dump();
+    return names[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
               : c->BriefReport());
   };
@@ -194,29 +200,29 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
       std::optional<Calibration> fit;
       std::optional<Error> err;
       try {
-        fit = Calibrate({Detect(a.files[i], channel)}, scene, opts);
+        fit = Calibrate(Detect(inputs[i], a.detect), scene, opts);
         if (fit->outcome != FitOutcome::kConverged) {
-          err = Error(ErrorCode::kFitFailed, a.files[i] + ": " + fit->message);
+          err = Error(ErrorCode::kFitFailed, names[i] + ": " + fit->message);
           fit.reset();
         }
       } catch (const Error& e) {
         err = e;
       } catch (const std::exception& e) {
-        err = Error(ErrorCode::kInternal, a.files[i] + ": " + e.what());
+        err = Error(ErrorCode::kInternal, names[i] + ": " + e.what());
       }
       std::lock_guard<std::mutex> lock(mu);
       fits[i] = std::move(fit);
       errors[i] = std::move(err);
       if (errors[i]) {
         std::string msg = errors[i]->what();
-        if (msg.rfind(a.files[i], 0) != 0) msg = a.files[i] + ": " + msg;
+        if (msg.rfind(names[i], 0) != 0) msg = names[i] + ": " + msg;
         std::cerr << (progress ? "\r\033[K" : "") << "bouncecal: " << msg << "\n";
       }
       done[i] = true;
       ++finished;
       flush_ready();
       if (progress) {
-        std::cerr << "\r\033[K[" << finished << "/" << n << "] " << a.files[i] << std::flush;
+        std::cerr << "\r\033[K[" << finished << "/" << n << "] " << names[i] << std::flush;
       }
     }
   };
@@ -261,22 +267,23 @@ void Run(const CalibrateArgs& a) {
   if (all) sf.law.clear();
   const Scene scene = ResolveScene(sf);
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
-  const ChannelSelection channel = ParseChannelSelection(a.channel);
+  MakeDetectOptions(a.detect);  // flag errors before any work
+  const auto inputs = PairInputs(a.files, a.detect);
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
 
   if (a.batch) {
-    const int rc = RunBatch(a, scene, opts, channel);
+    const int rc = RunBatch(a, scene, opts, inputs);
     if (rc != 0) throw Error(ErrorCode::kSomeFailed, "some recordings failed");
     return;
   }
 
-  const std::vector<CalibrationInput> inputs = DetectAll(a.files, channel, a.jobs);
+  const std::vector<CalibrationInput> recordings = DetectAll(inputs, a.detect, a.jobs);
   const Provenance prov = MakeProvenance(a.files);
   const nlohmann::json options_json = OptionsJson(opts);
 
   if (all) {
-    auto rows = CompareLaws(inputs, scene, opts, a.jobs);
+    auto rows = CompareLaws(recordings, scene, opts, a.jobs);
     if (rows.empty() || rows.front().fit.outcome == FitOutcome::kFailed) {
       throw Error(ErrorCode::kFitFailed, "no contact law could be fitted to these recordings" +
                                              (rows.empty() ? "" : ": " + rows.front().fit.message));
@@ -330,7 +337,7 @@ void Run(const CalibrateArgs& a) {
     return;
   }
 
-  const Calibration c = Calibrate(inputs, scene, opts);
+  const Calibration c = Calibrate(recordings, scene, opts);
   const nlohmann::json doc = ParamFileJson(c, prov, options_json);
   if (a.json) {
     std::cout << doc.dump(2) << "\n";
@@ -376,7 +383,7 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag(
       "--use-drop", args->use_drop,
       "hold the first impact speed at the scene's drop height/speed instead of fitting it");
-  sub->add_option("--channel", args->channel, "channel: 0, 1, ..., mix or auto");
+  AddDetectFlags(sub, &args->detect);
   sub->add_option("-o,--output", args->output, "write the parameter file (JSON) here");
   sub->add_flag("--force", args->force, "replace an existing output file");
   sub->add_flag("--json", args->json, "print the parameter-file object to stdout");

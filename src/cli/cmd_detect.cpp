@@ -1,44 +1,61 @@
-// `bouncecal detect FILE`: recording -> impact onsets -> bounce sequences.
+// `bouncecal detect FILE...`: recording -> impact onsets -> bounce sequences.
 //
 //   bouncecal detect drop.wav                      # table on stdout
 //   bouncecal detect drop.wav --channel 1 --json   # JSON contract below
 //   bouncecal detect drop.wav --csv                # one row per impact of every sequence
+//   bouncecal detect a.wav b.m4a --json            # several recordings: a JSON array
+//   bouncecal detect drop.wav --click-track clicks.wav   # listen to what was found
 //
-// --json: {"file", "sample_rate_hz", "channels", "channel_used" (null = mix), "duration_s",
-//   "clipping": [{"channel", "clipped_samples", "peak"}], "impacts": [main sequence impacts],
-//   "sequences": [{"impacts": [{"time_s", "sigma_s", "amplitude", "snr_db", "score",
-//   "clipped"}...], "missed_after": [...], "end_reason"}...], "main_sequence", "n_candidates",
-//   "warnings": [...]}.
-// --csv: sequence,index,time_s,sigma_s,amplitude,snr_db,score,clipped
-// Errors: one line on stderr, exit code from error.hpp, nothing on stdout.
+// --json, one recording: {"file", "sample_rate_hz", "channels", "channel_used" (null = mix),
+//   "duration_s", "audio": {"format", "codec", "decoder", "lossy", "codec_delay_samples",
+//   "codec_delay_s", "codec_delay_trimmed"}, "window": {"start_s", "end_s"}, "source"
+//   ("detection" | "impacts_file"), "channel_scores": [{"channel" (null = mix), "score",
+//   "impacts", "failure"}], "clipping": [{"channel", "clipped_samples", "peak"}], "impacts":
+//   [the first chosen sequence's impacts], "sequences": [{"impacts": [{"time_s", "sigma_s",
+//   "amplitude", "snr_db", "score", "clipped"}...], "missed_after": [...], "irregular_after":
+//   [...], "removed": [{"time_s", "sigma_s", "amplitude", "snr_db", "code"}], "end_reason"}...],
+//   "main_sequence", "chosen_sequences": [...], "n_candidates", "warnings": [...]}.
+//   Several recordings: an array of these objects, one per recording in order; a recording that
+//   failed is {"file", "error": {"code", "exit_code", "message"}}.
+// --csv: sequence,index,time_s,sigma_s,amplitude,snr_db,score,clipped (several recordings: a
+//   leading file column).
+// Errors: one line on stderr, exit code from error.hpp, nothing on stdout (one recording);
+// several recordings: each failure on stderr, the others printed, exit 12 if any failed.
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/acoustic/audio.hpp"
+#include "bouncecal/acoustic/click_track.hpp"
 #include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
 #include "commands.hpp"
+#include "detect_flags.hpp"
 #include "output.hpp"
 
 namespace bouncecal::cli {
 namespace {
 
-struct DetectFlags {
-  std::string file;
-  std::string channel = "auto";
+struct DetectArgs {
+  std::vector<std::string> files;
+  DetectFlags detect;
   double hop_ms = 0.0;
   bool no_refine = false;
   bool json = false;
   bool csv = false;
+  std::string click_track;
+  bool force = false;
 };
 
 nlohmann::json ImpactJson(const Impact& i) {
-  return {{"time_s", i.time_s}, {"sigma_s", i.sigma_s}, {"amplitude", i.amplitude},
-          {"snr_db", i.snr_db}, {"score", i.score},     {"clipped", i.clipped}};
+  return {{"time_s", i.time_s},          {"sigma_s", JsonNumber(i.sigma_s)},
+          {"amplitude", i.amplitude},    {"snr_db", JsonNumber(i.snr_db)},
+          {"score", i.score},            {"clipped", i.clipped}};
 }
 
 std::string Format(const char* fmt, double a) {
@@ -47,64 +64,105 @@ std::string Format(const char* fmt, double a) {
   return buf;
 }
 
-void Run(const DetectFlags& f) {
-  if (f.json && f.csv) throw Error(ErrorCode::kUsage, "--json and --csv exclude each other");
-  if (!(f.hop_ms >= 0.0) || f.hop_ms > 50.0)
-    throw Error(ErrorCode::kUsage,
-                "--hop-ms " + Format("%g", f.hop_ms) + ": must be in [0, 50] (0 = auto)");
-  DetectOptions opt;
-  opt.channel = ParseChannelSelection(f.channel);
-  opt.hop_s = f.hop_ms * 1e-3;
-  opt.refine = !f.no_refine;
-  const Audio audio = ReadAudio(f.file);
-  const DetectionResult r = DetectImpacts(audio, opt);
-  PrintWarnings(r.warnings);
+nlohmann::json ResultJson(const std::string& file, const LoadedRecording& l) {
+  const DetectionResult& r = l.result;
+  nlohmann::json j;
+  j["file"] = file;
+  j["sample_rate_hz"] = JsonNumber(r.audio.sample_rate_hz > 0 ? r.audio.sample_rate_hz : NAN);
+  j["channels"] = r.audio.channels;
+  j["channel_used"] = r.channel >= 0 ? nlohmann::json(r.channel) : nlohmann::json();
+  j["duration_s"] = r.audio.duration_s();
+  const double rate = r.audio.sample_rate_hz;
+  j["audio"] = {{"format", r.audio.format},
+                {"codec", r.audio.subtype},
+                {"decoder", r.audio.decoder},
+                {"lossy", r.audio.lossy},
+                {"codec_delay_samples", r.audio.codec_delay_samples},
+                {"codec_delay_s",
+                 JsonNumber(rate > 0 ? static_cast<double>(r.audio.codec_delay_samples) / rate : NAN)},
+                {"codec_delay_trimmed", r.audio.codec_delay_trimmed}};
+  j["window"] = {{"start_s", r.start_s}, {"end_s", r.end_s}};
+  j["source"] = l.impacts_file.empty() ? "detection" : "impacts_file";
+  j["channel_scores"] = nlohmann::json::array();
+  for (const ChannelScore& c : r.channel_scores)
+    j["channel_scores"].push_back(
+        {{"channel", c.channel >= 0 ? nlohmann::json(c.channel) : nlohmann::json()},
+         {"score", c.score},
+         {"impacts", c.impacts},
+         {"failure", c.failure.empty() ? nlohmann::json() : nlohmann::json(c.failure)}});
+  j["clipping"] = nlohmann::json::array();
+  for (const ClippingReport& c : r.clipping)
+    j["clipping"].push_back(
+        {{"channel", c.channel}, {"clipped_samples", c.clipped_samples}, {"peak", c.peak}});
+  j["impacts"] = nlohmann::json::array();
+  if (!l.chosen.empty())
+    for (const Impact& i : r.sequences[static_cast<std::size_t>(l.chosen.front())].impacts)
+      j["impacts"].push_back(ImpactJson(i));
+  j["sequences"] = nlohmann::json::array();
+  for (const Sequence& s : r.sequences) {
+    nlohmann::json q;
+    q["impacts"] = nlohmann::json::array();
+    for (const Impact& i : s.impacts) q["impacts"].push_back(ImpactJson(i));
+    q["missed_after"] = s.missed_after;
+    q["irregular_after"] = s.irregular_after;
+    q["removed"] = nlohmann::json::array();
+    for (const RemovedImpact& x : s.removed) {
+      nlohmann::json rj = ImpactJson(x.impact);
+      rj["code"] = x.code;
+      q["removed"].push_back(rj);
+    }
+    q["end_reason"] = s.end_reason;
+    j["sequences"].push_back(q);
+  }
+  j["main_sequence"] = r.main_sequence;
+  j["chosen_sequences"] = l.chosen;
+  j["n_candidates"] = r.candidates.size();
+  j["warnings"] = WarningsJson(r.warnings);
+  return j;
+}
 
-  if (f.json) {
-    nlohmann::json j;
-    j["file"] = f.file;
-    j["sample_rate_hz"] = r.audio.sample_rate_hz;
-    j["channels"] = r.audio.channels;
-    j["channel_used"] = r.channel >= 0 ? nlohmann::json(r.channel) : nlohmann::json();
-    j["duration_s"] = r.audio.duration_s();
-    j["clipping"] = nlohmann::json::array();
-    for (const ClippingReport& c : r.clipping)
-      j["clipping"].push_back(
-          {{"channel", c.channel}, {"clipped_samples", c.clipped_samples}, {"peak", c.peak}});
-    j["impacts"] = nlohmann::json::array();
-    for (const Impact& i : r.main().impacts) j["impacts"].push_back(ImpactJson(i));
-    j["sequences"] = nlohmann::json::array();
-    for (const Sequence& s : r.sequences) {
-      nlohmann::json q;
-      q["impacts"] = nlohmann::json::array();
-      for (const Impact& i : s.impacts) q["impacts"].push_back(ImpactJson(i));
-      q["missed_after"] = s.missed_after;
-      q["end_reason"] = s.end_reason;
-      j["sequences"].push_back(q);
-    }
-    j["main_sequence"] = r.main_sequence;
-    j["n_candidates"] = r.candidates.size();
-    j["warnings"] = WarningsJson(r.warnings);
-    std::cout << j.dump(2) << "\n";
-    return;
+std::string CsvQuote(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"') out += '"';
+    out += c;
   }
-  if (f.csv) {
-    std::cout << "sequence,index,time_s,sigma_s,amplitude,snr_db,score,clipped\n";
-    for (std::size_t s = 0; s < r.sequences.size(); ++s) {
-      const auto& imps = r.sequences[s].impacts;
-      for (std::size_t k = 0; k < imps.size(); ++k) {
-        const Impact& i = imps[k];
-        char buf[256];
-        std::snprintf(buf, sizeof buf, "%zu,%zu,%.9f,%.3e,%.6g,%.2f,%.3f,%d\n", s, k, i.time_s,
-                      i.sigma_s, i.amplitude, i.snr_db, i.score, i.clipped ? 1 : 0);
-        std::cout << buf;
-      }
+  return out + "\"";
+}
+
+void PrintCsv(const std::string& file, const DetectionResult& r, bool with_file) {
+  for (std::size_t s = 0; s < r.sequences.size(); ++s) {
+    const auto& imps = r.sequences[s].impacts;
+    for (std::size_t k = 0; k < imps.size(); ++k) {
+      const Impact& i = imps[k];
+      char buf[256];
+      std::snprintf(buf, sizeof buf, "%zu,%zu,%.9f,%.3e,%.6g,%.2f,%.3f,%d\n", s, k, i.time_s,
+                    i.sigma_s, i.amplitude, i.snr_db, i.score, i.clipped ? 1 : 0);
+      if (with_file) std::cout << CsvQuote(file) << ",";
+      std::cout << buf;
     }
-    return;
   }
-  std::printf("%s: %.0f Hz, %d channel(s), %.3f s, listening to %s\n", f.file.c_str(),
-              r.audio.sample_rate_hz, r.audio.channels, r.audio.duration_s(),
-              r.channel >= 0 ? ("channel " + std::to_string(r.channel)).c_str() : "the mix");
+}
+
+void PrintTable(const std::string& file, const LoadedRecording& l) {
+  const DetectionResult& r = l.result;
+  std::printf("%s: %.0f Hz, %d channel(s), %.3f s, %s\n", file.c_str(), r.audio.sample_rate_hz,
+              r.audio.channels, r.audio.duration_s(),
+              !l.impacts_file.empty() ? ("times from " + l.impacts_file).c_str()
+              : r.channel >= 0        ? ("listening to channel " + std::to_string(r.channel)).c_str()
+                                      : "listening to the mix");
+  if (r.audio.decoder == "ffmpeg")
+    std::printf("decoded by FFmpeg: %s in %s%s\n", r.audio.subtype.c_str(), r.audio.format.c_str(),
+                r.audio.codec_delay_samples > 0
+                    ? (", " + std::to_string(r.audio.codec_delay_samples) + " priming samples " +
+                       (r.audio.codec_delay_trimmed ? "trimmed" : "not trimmed"))
+                          .c_str()
+                    : "");
+  for (const ChannelScore& c : r.channel_scores)
+    std::printf("  %s: score %.1f, %d impacts%s\n",
+                c.channel >= 0 ? ("channel " + std::to_string(c.channel)).c_str() : "mix", c.score,
+                c.impacts, c.failure.empty() ? "" : (" (" + c.failure + ")").c_str());
   std::printf("%zu onset candidates, %zu sequence(s); main = sequence %d\n", r.candidates.size(),
               r.sequences.size(), r.main_sequence);
   for (std::size_t s = 0; s < r.sequences.size(); ++s) {
@@ -121,25 +179,110 @@ void Run(const DetectFlags& f) {
                   interval.c_str(), i.amplitude, i.snr_db, i.score, i.clipped ? "  clipped" : "");
       for (int m : q.missed_after)
         if (m == static_cast<int>(k)) std::printf("      (an impact seems missing here)\n");
+      for (int m : q.irregular_after)
+        if (m == static_cast<int>(k)) std::printf("      (irregular interval next)\n");
+    }
+    for (const RemovedImpact& x : q.removed)
+      std::printf("  removed: t = %.6f s, amplitude %.4f, snr %.1f dB (%s)\n", x.impact.time_s,
+                  x.impact.amplitude, x.impact.snr_db, x.code.c_str());
+  }
+}
+
+void WriteClickTrack(const DetectArgs& a, const Audio& audio, const LoadedRecording& l) {
+  std::vector<double> times;
+  for (int s : l.chosen)
+    for (const Impact& i : l.result.sequences[static_cast<std::size_t>(s)].impacts)
+      times.push_back(i.time_s);
+  WriteAudio(a.click_track, RenderClickTrack(audio, times), audio.info.sample_rate_hz);
+}
+
+void Run(const DetectArgs& a) {
+  if (a.json && a.csv) throw Error(ErrorCode::kUsage, "--json and --csv exclude each other");
+  if (!(a.hop_ms >= 0.0) || a.hop_ms > 50.0)
+    throw Error(ErrorCode::kUsage,
+                "--hop-ms " + Format("%g", a.hop_ms) + ": must be in [0, 50] (0 = auto)");
+  MakeDetectOptions(a.detect);  // flag errors before any work
+  const auto inputs = PairInputs(a.files, a.detect);
+  if (!a.click_track.empty()) {
+    if (inputs.size() != 1 || inputs[0].first.empty())
+      throw Error(ErrorCode::kUsage, "--click-track needs exactly one recording");
+    std::vector<std::string> in = {inputs[0].first};
+    if (!inputs[0].second.empty()) in.push_back(inputs[0].second);
+    CheckOutputPath(a.click_track, {.force = a.force, .inputs = in});
+  }
+  const bool several = inputs.size() > 1;
+  nlohmann::json all = nlohmann::json::array();
+  bool any_failed = false;
+  bool csv_header = false;
+  for (std::size_t n = 0; n < inputs.size(); ++n) {
+    const std::string& rec = inputs[n].first;
+    const std::string& imp = inputs[n].second;
+    const std::string name = rec.empty() ? imp : rec;
+    try {
+      std::optional<Audio> audio;
+      if (!rec.empty()) audio = ReadAudio(rec);
+      // Options the shared flags do not cover.
+      DetectFlags f = a.detect;
+      LoadedRecording l;
+      if (imp.empty()) {
+        DetectOptions o = MakeDetectOptions(f);
+        o.hop_s = a.hop_ms * 1e-3;
+        o.refine = !a.no_refine;
+        l.name = name;
+        l.result = DetectImpacts(*audio, o);
+        l.chosen = ChooseSequences(l.result.sequences, ParseSequenceChoice(f.sequence), name);
+      } else {
+        l = LoadRecording(rec, audio ? &*audio : nullptr, imp, f);
+      }
+      PrintWarnings(l.result.warnings);
+      if (a.json) {
+        all.push_back(ResultJson(name, l));
+      } else if (a.csv) {
+        if (!csv_header)
+          std::cout << (several ? "file," : "")
+                    << "sequence,index,time_s,sigma_s,amplitude,snr_db,score,clipped\n";
+        csv_header = true;
+        PrintCsv(name, l.result, several);
+      } else {
+        if (n > 0) std::printf("\n");
+        PrintTable(name, l);
+      }
+      if (!a.click_track.empty()) WriteClickTrack(a, *audio, l);
+    } catch (const Error& e) {
+      if (!several) throw;
+      any_failed = true;
+      std::fprintf(stderr, "bouncecal: %s\n", e.what());
+      if (a.json)
+        all.push_back({{"file", name},
+                       {"error",
+                        {{"code", ErrorCodeName(e.code())},
+                         {"exit_code", e.exit_code()},
+                         {"message", e.what()}}}});
     }
   }
+  if (a.json) std::cout << (several ? all : all[0]).dump(2) << "\n";
+  if (any_failed)
+    throw Error(ErrorCode::kSomeFailed, "some recordings failed (see the messages above)");
 }
 
 }  // namespace
 
 void RegisterDetect(CLI::App& app) {
-  auto flags = std::make_shared<DetectFlags>();
+  auto args = std::make_shared<DetectArgs>();
   CLI::App* sub =
-      app.add_subcommand("detect", "Find the impacts and bounce sequences in a recording");
-  sub->add_option("FILE", flags->file, "Recording (any format libsndfile reads)")->required();
-  sub->add_option("--channel", flags->channel, "Channel: N (0-based), mix or auto")
-      ->default_val("auto");
-  sub->add_option("--hop-ms", flags->hop_ms, "STFT hop in ms (0 = auto, ~0.33 ms)")
+      app.add_subcommand("detect", "Find the impacts and bounce sequences in recordings");
+  sub->add_option("FILE", args->files,
+                  "recordings (any format libsndfile or FFmpeg reads: WAV, FLAC, m4a/AAC, ...)");
+  AddDetectFlags(sub, &args->detect);
+  sub->add_option("--hop-ms", args->hop_ms, "STFT hop in ms (0 = auto, ~0.33 ms)")
       ->default_val(0.0);
-  sub->add_flag("--no-refine", flags->no_refine, "Skip the sub-sample change-point refinement");
-  sub->add_flag("--json", flags->json, "JSON on stdout");
-  sub->add_flag("--csv", flags->csv, "CSV on stdout");
-  sub->callback([flags]() { Run(*flags); });
+  sub->add_flag("--no-refine", args->no_refine, "Skip the sub-sample change-point refinement");
+  sub->add_option("--click-track", args->click_track,
+                  "write the recording with a click at every impact found (WAV, FLAC, ...)");
+  sub->add_flag("--force", args->force, "replace an existing --click-track file");
+  sub->add_flag("--json", args->json, "JSON on stdout");
+  sub->add_flag("--csv", args->csv, "CSV on stdout");
+  sub->callback([args]() { Run(*args); });
 }
 
 }  // namespace bouncecal::cli

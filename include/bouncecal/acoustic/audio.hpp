@@ -1,7 +1,11 @@
-// bouncecal/acoustic/audio.hpp — reading and writing recordings through libsndfile.
+// bouncecal/acoustic/audio.hpp — reading and writing recordings through libsndfile, and reading
+// what libsndfile cannot (m4a/AAC and the other formats phones write) through FFmpeg.
 //
 // Every format libsndfile reads (WAV 16/24/32-bit int and float, FLAC, OGG/Vorbis, AIFF, ...),
-// any sample rate, any channel count. Samples are float in [-1, 1] (float files may exceed it).
+// and when libsndfile refuses a file, everything FFmpeg's libavformat/libavcodec decode; any
+// sample rate in [8 kHz, 384 kHz], any channel count, decoded at the file's own rate (no
+// resampling). Samples are float in [-1, 1] (float files may exceed it). Decoded audio is
+// checked like any other (NaN/Inf, clipping).
 //
 //   Audio a = ReadAudio("drop.wav");                  // throws Error naming the file
 //   std::vector<float> x = SelectChannel(a, ParseChannelSelection("auto"));
@@ -21,8 +25,15 @@ struct AudioInfo {
   double sample_rate_hz = 0.0;
   int channels = 0;
   std::int64_t frames = 0;
-  std::string format;   // "WAV", "FLAC", ...
-  std::string subtype;  // "PCM_16", "FLOAT", ...
+  std::string format;   // "WAV", "FLAC", ... (FFmpeg: its demuxer name, "mov,mp4,m4a,3gp,...")
+  std::string subtype;  // "PCM_16", "FLOAT", ... (FFmpeg: the codec, "aac", "opus", ...)
+  std::string decoder = "libsndfile";  // or "ffmpeg"
+  bool lossy = false;                  // a lossy codec (FFmpeg path): onsets are smeared
+  // Priming samples of the codec (encoder delay): trimmed by the decoder when the container says
+  // how many (codec_delay_trimmed), else only reported: times then include the delay, a
+  // constant offset that cancels in intervals.
+  std::int64_t codec_delay_samples = 0;
+  bool codec_delay_trimmed = false;
   double duration_s() const {
     return sample_rate_hz > 0 ? static_cast<double>(frames) / sample_rate_hz : 0.0;
   }
@@ -53,7 +64,10 @@ struct Audio {
   std::vector<ClippingReport> clipping;      // one per channel
 };
 
+// libsndfile first, FFmpeg when libsndfile cannot open the file.
 Audio ReadAudio(const std::string& path);
+// FFmpeg only (the fallback above). Throws Error(kNotAudio) naming the file.
+Audio ReadAudioFfmpeg(const std::string& path);
 
 // Which channel the detector listens to.
 struct ChannelSelection {

@@ -92,4 +92,18 @@ struct DetectionResult {
 
 DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options);
 
+// Which sequences of a recording a user wants: the main (longest) one, all of them (several
+// drops in one file: separate drops for analyze/calibrate), or one by 0-based index.
+struct SequenceChoice {
+  enum class Kind { kMain, kAll, kIndex };
+  Kind kind = Kind::kMain;
+  int index = 0;
+};
+// "main", "all" or "0", "1", ... Throws Error(kUsage) naming the text otherwise.
+SequenceChoice ParseSequenceChoice(const std::string& text);
+// Indices into `sequences` (main: the longest). Throws Error(kUsage) for an index past the end,
+// naming `name` (the recording) and how many sequences there are.
+std::vector<int> ChooseSequences(const std::vector<Sequence>& sequences,
+                                 const SequenceChoice& choice, const std::string& name);
+
 }  // namespace bouncecal

@@ -24,7 +24,7 @@ enum class ErrorCode : int {
   kBadSamples = 5,    // NaN or Inf samples
   kSilence = 6,       // the recording is silent (all samples at or below the noise floor)
   kNoBounces = 7,     // no usable bounce sequence (noise only, a single impact, ...)
-  kBadScene = 8,      // malformed scene file, unknown key, bad or conflicting values
+  kBadScene = 8,      // malformed scene or --impacts file, unknown key, bad or conflicting values
   kBadParameter = 9,  // unknown law/parameter, out-of-range or non-finite value
   kFitFailed = 10,    // the fit did not converge or the data cannot determine the parameters
   kOutput = 11,       // output path unusable (missing directory, exists without --force, ...)

@@ -102,5 +102,178 @@ TEST(Trust, MetronomeIsNoBounceSequence) {
   EXPECT_NE(o.message.find("do not shrink"), std::string::npos) << o.message;
 }
 
+// A geometric drop (steel on the copper dish) rendered by the synth: impacts at t0, t0 + d0,
+// ... with d_k = d0 * e^k, except where `ratio_at` overrides one interval ratio.
+Recording RenderDrop(double t0, double d0, double e, int n, int irregular_k = -1,
+                     double irregular_ratio = 1.0) {
+  std::vector<TruthImpact> imps;
+  double t = t0, d = d0, v = 2.0;
+  for (int k = 0; k < n; ++k) {
+    TruthImpact ti;
+    ti.time_s = t;
+    ti.v_in_m_s = v;
+    ti.v_out_m_s = e * v;
+    ti.contact_s = 5e-5;
+    imps.push_back(ti);
+    const double r = k == irregular_k ? irregular_ratio : e;
+    if (k > 0) d *= r;
+    t += d;
+    v *= e;
+  }
+  RenderOptions ro;
+  ro.sample_rate_hz = kRate;
+  ro.snr_db = 50.0;
+  ro.tail_s = 0.5;
+  ro.seed = 21;
+  return RenderRecording(imps, ro);
+}
+
+TEST(Trust, HandlingTapsBeforeTheDropAreNotImpacts) {
+  // Quiet taps (50 dB below the first impact) exactly where the sequence, continued backwards,
+  // would put its earlier impacts: the interval pattern alone would take them.
+  const double t0 = 1.5, d0 = 0.3, e = 0.9;
+  Recording rec = RenderDrop(t0, d0, e, 20);
+  std::mt19937 rng(5);
+  const double first_peak = rec.drops[0][0].amplitude;
+  for (double t : {t0 - d0 / e, t0 - d0 / e - d0 / (e * e)})
+    AddClick(&rec.channels[0], t, first_peak * std::pow(10.0, -50.0 / 20.0), &rng);
+  const Outcome o = RunDetect(InMemory(rec.channels[0], "taps.wav"));
+  ASSERT_EQ(o.code, ErrorCode::kOk) << o.message;
+  for (const Sequence& q : o.result.sequences)
+    EXPECT_GT(q.impacts.front().time_s, t0 - 0.001) << Describe(o.result);
+  EXPECT_NEAR(o.result.main().impacts.front().time_s, rec.drops[0][0].onset_s, 2e-5);
+}
+
+TEST(Trust, IrregularBounceDoesNotEndTheSequence) {
+  // Spin: the 8th interval is 4 % longer than the 7th (ratio 1.04 where e = 0.85), as in the
+  // issue's superball (0.1915 -> 0.1516 -> 0.1576 s). Every later impact must still be found,
+  // and the output must say where the pattern broke.
+  const int n = 22;
+  const Recording rec = RenderDrop(0.5, 0.4, 0.85, n, 8, 1.04);
+  const Outcome o = RunDetect(InMemory(rec.channels[0], "spin.wav"));
+  ASSERT_EQ(o.code, ErrorCode::kOk) << o.message;
+  const Sequence& m = o.result.main();
+  int found = 0;
+  for (const RenderedImpact& t : rec.drops[0]) {
+    if (t.snr_db < 20.0) continue;  // the bench's eligibility: at least 20 dB
+    bool hit = false;
+    for (const Impact& i : m.impacts) hit = hit || std::fabs(i.time_s - t.onset_s) < 1e-3;
+    found += hit;
+    EXPECT_TRUE(hit) << "impact at " << t.onset_s << "\n" << Describe(o.result);
+  }
+  EXPECT_GE(found, 12);
+  EXPECT_TRUE(HasWarning(o.result.warnings, "irregular_interval")) << Describe(o.result);
+  ASSERT_FALSE(m.irregular_after.empty());
+  const std::size_t k = static_cast<std::size_t>(m.irregular_after.front());
+  EXPECT_NEAR(m.impacts[k].time_s, rec.drops[0][8].onset_s, 1e-3);
+}
+
+TEST(Trust, MinSnrIsSettable) {
+  const Recording rec = RenderDrop(0.5, 0.3, 0.85, 25);
+  DetectOptions strict;
+  strict.min_snr_db = 15.0;
+  const Outcome o = RunDetect(InMemory(rec.channels[0], "snr.wav"), strict);
+  ASSERT_EQ(o.code, ErrorCode::kOk) << o.message;
+  EXPECT_TRUE(HasWarning(o.result.warnings, "low_snr_removed"));
+  for (const Impact& i : o.result.main().impacts) EXPECT_GE(i.snr_db, 15.0);
+  const Outcome d = RunDetect(InMemory(rec.channels[0], "snr.wav"));
+  EXPECT_GT(d.result.main().impacts.size(), o.result.main().impacts.size());
+}
+
+// --- the stages ----------------------------------------------------------------------------
+
+Sequence Geometric(double t0, double d0, double e, int n, double amp0, double snr_db = 30.0) {
+  Sequence s;
+  double t = t0, d = d0, a = amp0;
+  for (int k = 0; k < n; ++k) {
+    Impact i;
+    i.time_s = t;
+    i.sigma_s = 5e-6;
+    i.amplitude = a;
+    i.snr_db = snr_db;
+    s.impacts.push_back(i);
+    t += d;
+    d *= e;
+    a *= e;  // level ~ speed
+  }
+  return s;
+}
+
+TEST(PlausibilityStages, QuietEarlierMemberIsAPhantomAndLeavesAGap) {
+  Sequence s = Geometric(1.0, 0.4, 0.9, 10, 0.5);
+  s.impacts[0].amplitude = 0.5e-3;  // 60 dB below the next ones: before the drop
+  s.impacts[4].amplitude *= 0.05;   // 26 dB below its successors, inside the sequence
+  s.impacts[7].amplitude *= 0.3;    // 10 dB: ordinary scatter, kept
+  const auto w = RemoveQuietEarlierMembers(&s, PlausibilityOptions{}, "test");
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[0].code, "phantom_removed");
+  EXPECT_NE(w[0].message.find("1.0000"), std::string::npos) << w[0].message;
+  ASSERT_EQ(s.impacts.size(), 8u);
+  EXPECT_NEAR(s.impacts[0].time_s, 1.4, 1e-12);
+  ASSERT_EQ(s.removed.size(), 2u);
+  EXPECT_EQ(s.removed[0].code, "phantom_removed");
+  // The removal inside the sequence is flagged as a gap of two flights.
+  ASSERT_EQ(s.missed_after.size(), 1u);
+  EXPECT_EQ(s.missed_after[0], 2);
+}
+
+TEST(PlausibilityStages, LowSnrAndUntimedMembersAreRemoved) {
+  Sequence s = Geometric(1.0, 0.4, 0.9, 8, 0.5);
+  s.impacts[7].snr_db = -3.0;
+  auto w = RemoveLowSnrMembers(&s, PlausibilityOptions{}, "test");
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].code, "low_snr_removed");
+  EXPECT_NE(w[0].message.find("min_snr_db"), std::string::npos);
+  EXPECT_EQ(s.impacts.size(), 7u);
+  s.impacts[3].sigma_s = 47.0;  // digital silence gave sigma = 47 s
+  s.impacts[5].sigma_s = std::nan("");
+  w = RemoveUntimedMembers(&s, PlausibilityOptions{}, "test");
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[0].code, "sigma_removed");
+  EXPECT_EQ(s.impacts.size(), 5u);
+}
+
+TEST(PlausibilityStages, MetronomeAndQuietSequence) {
+  std::vector<Sequence> seqs;
+  Sequence metronome;
+  for (int k = 0; k < 4; ++k) {
+    Impact i;
+    i.time_s = 0.6 * (k + 1);
+    i.sigma_s = 5e-6;
+    i.amplitude = 0.4;
+    i.snr_db = 40.0;
+    metronome.impacts.push_back(i);
+  }
+  EXPECT_NEAR(MeanIntervalRatio(metronome), 1.0, 1e-12);
+  seqs.push_back(metronome);
+  // A real drop and, before it, taps 40 dB quieter at the same speeds.
+  seqs.push_back(Geometric(0.05, 0.45, 0.65, 8, 0.004));
+  seqs.push_back(Geometric(3.1, 0.76, 0.85, 20, 0.6));
+  EXPECT_NEAR(LevelAtUnitSpeedDb(seqs[2]) - LevelAtUnitSpeedDb(seqs[1]),
+              20.0 * std::log10(0.6 / 0.004) + 20.0 * std::log10(0.76 / 0.45) -
+                  20.0 * std::log10(0.85 / 0.65) * 0.0,
+              25.0);  // about 40 dB; the speed factor differs between the two
+  const auto w = EnforcePlausibility(&seqs, PlausibilityOptions{});
+  ASSERT_EQ(seqs.size(), 1u);
+  EXPECT_NEAR(seqs[0].impacts.front().time_s, 3.1, 1e-12);
+  EXPECT_TRUE(HasWarning(w, "not_shrinking"));
+  EXPECT_TRUE(HasWarning(w, "phantom_removed"));
+}
+
+TEST(PlausibilityStages, OptionsValidation) {
+  PlausibilityOptions o;
+  std::string why;
+  EXPECT_TRUE(o.IsValid(&why));
+  o.max_sigma_fraction = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("max_sigma_fraction"), std::string::npos);
+  o = PlausibilityOptions{};
+  o.level_tolerance_db = -1;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("level_tolerance_db"), std::string::npos);
+  std::vector<Sequence> none;
+  EXPECT_THROW(EnforcePlausibility(&none, o), Error);
+}
+
 }  // namespace
 }  // namespace bouncecal

@@ -223,12 +223,14 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   PlausibilityOptions po;
   po.min_snr_db = options.min_snr_db;
   po.min_sequence_impacts = options.min_sequence_impacts;
-  std::vector<std::size_t> sizes;
-  for (const Sequence& q : out.sequences) sizes.push_back(q.impacts.size() + q.removed.size());
-  out.warnings = EnforcePlausibility(&out.sequences, po);
-  // The predictor and template of a sequence that lost members included them: time it again.
-  for (Sequence& q : out.sequences)
-    if (!q.removed.empty()) TimeSequence(x, rate_hz, &q, tim);
+  // The predictor and template of a sequence that lost members included them: time it again,
+  // and check again (its members' SNR and sigma moved a little), until nothing is removed.
+  for (int round = 0; round < 4; ++round) {
+    const std::vector<Warning> w = EnforcePlausibility(&out.sequences, po);
+    out.warnings.insert(out.warnings.end(), w.begin(), w.end());
+    if (w.empty()) break;
+    for (Sequence& q : out.sequences) TimeSequence(x, rate_hz, &q, tim);
+  }
   for (Sequence& q : out.sequences)
     for (Impact& imp : q.impacts)
       imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;

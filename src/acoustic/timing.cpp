@@ -357,7 +357,13 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
     for (long j = 0; j < g.tl; ++j) yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
     const double s_c =
         std::max(1e-12, ProjectedNoise(nb, t.h, out->onset, rate_hz, o) / std::sqrt(t.hh * yy));
-    const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc) / (2.0 * s_c));
+    // The choice prefers the detection's neighbourhood (+- near) by far_ncc_margin, so a rival
+    // across that border needs the noise to overcome the margin too (or less of it).
+    const long s0 = anchor - g.lead;
+    const bool best_near = std::labs(lc.lag - s0) <= g.near;
+    const bool rival_near = std::labs(lc.rival_lag - s0) <= g.near;
+    const double margin = best_near == rival_near ? 0.0 : (best_near ? 1.0 : -1.0) * o.far_ncc_margin;
+    const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc + margin) / (2.0 * s_c));
     d->sigma_ambiguity =
         o.ambiguity_gain * std::sqrt(p) * static_cast<double>(std::labs(lc.rival_lag - lc.lag));
   }
@@ -467,9 +473,15 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   }
   // The template's lag to itself is exact, but its shape differs from the others' as theirs
   // differs from it: its sigma relative to the sequence is the typical sigma of the others.
+  // (Ambiguity left out: the template's own lag is never ambiguous.)
   std::vector<double> others;
-  for (std::size_t k = 0; k < n; ++k)
-    if (k != tk && res.detail[k].by_template) others.push_back(imps[k].sigma_s);
+  for (std::size_t k = 0; k < n; ++k) {
+    const TimingDetail& d = res.detail[k];
+    if (k != tk && d.by_template)
+      others.push_back(std::sqrt(d.sigma_noise * d.sigma_noise + d.sigma_shape * d.sigma_shape +
+                                 d.sigma_resolution * d.sigma_resolution) /
+                       rate_hz);
+  }
   if (!others.empty()) {
     const auto mid = others.begin() + static_cast<std::ptrdiff_t>(others.size() / 2);
     std::nth_element(others.begin(), mid, others.end());

@@ -428,7 +428,7 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
                              : "are declared but were not trimmed: times are late by that much")
                   : std::string("no codec delay stated")) +
              "; lossy coding smears onsets (pre-echo), so a constant offset of up to a few ms "
-             "is possible (intervals are unaffected)",
+             "is possible (intervals are not)",
          -1});
   }
   ChannelChoiceWarning(res, &res.warnings);

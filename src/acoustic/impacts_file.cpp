@@ -217,6 +217,15 @@ std::vector<Sequence> Validate(const std::string& path, std::vector<RawTime> raw
     im.score = 1.0;
     q.impacts.push_back(im);
   }
+  // Intervals of a bouncing ball shrink: one 1.5 times the previous or longer cannot be a single
+  // flight (a deleted or missing impact). Flag it as the tracker flags a missed impact, so the
+  // kinematics does not take it as one flight.
+  for (Sequence& q : seqs)
+    for (std::size_t k = 1; k + 1 < q.impacts.size(); ++k) {
+      const double prev = q.impacts[k].time_s - q.impacts[k - 1].time_s;
+      const double next = q.impacts[k + 1].time_s - q.impacts[k].time_s;
+      if (next >= 1.5 * prev) q.missed_after.push_back(static_cast<int>(k));
+    }
   for (std::size_t s = 0; s < seqs.size(); ++s)
     if (static_cast<int>(seqs[s].impacts.size()) < o.min_impacts)
       Bad(path, "", "sequence " + std::to_string(ids[s]) + " has " +

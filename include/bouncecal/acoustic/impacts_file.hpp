@@ -11,7 +11,8 @@
 //   - one time per line (aubio's `aubioonset` output), `#` comments allowed.
 // Times are seconds from the start of the recording, strictly increasing within a sequence,
 // >= 0 and, when the recording's duration is known, not beyond it. Times without a sigma get
-// ImpactsFileOptions::default_sigma_s.
+// ImpactsFileOptions::default_sigma_s. An interval 1.5 times the previous one or longer (an
+// impact deleted by hand) is flagged in Sequence::missed_after, as the tracker flags a gap.
 //
 //   ImpactsFile f = ReadImpactsFile("fixed.json", ImpactsFileOptions{.duration_s = 12.8});
 //

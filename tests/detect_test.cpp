@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <random>
 #include <string>
@@ -16,6 +17,7 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
@@ -224,6 +226,156 @@ TEST_F(DetectCli, BadInputExitCodes) {
   EXPECT_TRUE(r.out.empty());  // nothing on stdout on failure
   EXPECT_EQ(Cli("detect " + silent + " --channel 5").code, static_cast<int>(ErrorCode::kUsage));
   EXPECT_EQ(Cli("detect " + silent + " --hop-ms -1").code, static_cast<int>(ErrorCode::kUsage));
+}
+
+// --- Channel choice by sequence quality, windows, sequence choice, several files, click track
+
+using testing_util::RunCommand;
+using testing_util::ScratchDir;
+
+TEST(Detect, AutoChoosesTheChannelWithTheBetterSequenceAndSaysSo) {
+  // Channel 0 hears the drop; channel 1 only noise and two loud knocks (a level statistic would
+  // like channel 1: its peaks are higher).
+  const SynthResult s = Synthesize(SynthPreset("pingpong-wood"));
+  std::vector<float> other(s.recording.channels[0].size());
+  std::mt19937 rng(4);
+  std::normal_distribution<float> g(0.0f, 0.003f);
+  for (float& v : other) v = g(rng);
+  for (double t : {0.3, 1.9})
+    for (int n = 0; n < 200; ++n)
+      other[static_cast<std::size_t>(t * 44100) + static_cast<std::size_t>(n)] +=
+          0.9f * std::exp(-static_cast<float>(n) / 40.0f) * (n % 2 ? 1.0f : -1.0f);
+  const Audio a =
+      InMemory({s.recording.channels[0], other}, s.recording.sample_rate_hz, "two_mics.wav");
+  const DetectionResult r = DetectImpacts(a, DetectOptions{});
+  EXPECT_NE(r.channel, 1);
+  ASSERT_EQ(r.channel_scores.size(), 3u);  // channel 0, channel 1, the mix
+  EXPECT_EQ(r.channel_scores[1].channel, 1);
+  EXPECT_EQ(r.channel_scores[1].impacts, 0);
+  EXPECT_FALSE(r.channel_scores[1].failure.empty());
+  EXPECT_GT(r.channel_scores[0].score, 10.0);
+  EXPECT_TRUE(HasWarning(r.warnings, "channel_choice"));
+}
+
+class DetectCliMore : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const SynthResult s = Synthesize(SynthPreset("two-drops"));
+    two_ = dir_ / "two.wav";
+    WriteAudio(two_, s.recording.channels, s.recording.sample_rate_hz);
+    first_drop_s_ = s.recording.drops[0][0].onset_s;
+    second_drop_s_ = s.recording.drops[1][0].onset_s;
+  }
+  ScratchDir dir_{"detect_cli_more"};
+  std::string two_;
+  double first_drop_s_ = 0.0, second_drop_s_ = 0.0;
+};
+
+TEST_F(DetectCliMore, WindowAndSequenceChoice) {
+  // The window keeps file times and only the drop inside it.
+  auto r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --start " +
+                                            std::to_string(second_drop_s_ - 0.2) + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["sequences"].size(), 1u);
+  EXPECT_NEAR(j["impacts"][0]["time_s"].get<double>(), second_drop_s_, 1e-3);
+  EXPECT_NEAR(j["window"]["start_s"].get<double>(), second_drop_s_ - 0.2, 1e-4);
+  // A window with no impact: exit 7, the window in the message.
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --start 0.1 --end 0.5");
+  EXPECT_EQ(r.exit_code, 7);
+  EXPECT_NE(r.err.find("[0.1, 0.5) s"), std::string::npos) << r.err;
+  EXPECT_TRUE(r.out.empty());
+  // --sequence 1 / all / out of range.
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --sequence 1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["chosen_sequences"], nlohmann::json::array({1}));
+  EXPECT_NEAR(j["impacts"][0]["time_s"].get<double>(), second_drop_s_, 1e-3);
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --sequence 7");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("sequence 7 requested"), std::string::npos) << r.err;
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --sequence first");
+  EXPECT_EQ(r.exit_code, 2);
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --end 0.5 --start 1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--end"), std::string::npos) << r.err;
+  // analyze --sequence all: each drop analysed separately (a JSON array of two).
+  r = RunCommand(BOUNCECAL_BINARY, "analyze " + two_ + " --sequence all --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j.is_array());
+  ASSERT_EQ(j.size(), 2u);
+  EXPECT_NEAR(j[1]["bounces"][0]["time_s"].get<double>(), second_drop_s_, 1e-3);
+}
+
+TEST_F(DetectCliMore, SeveralRecordingsPerCall) {
+  const std::string bad = dir_ / "bad.wav";
+  std::ofstream(bad) << "not audio";
+  auto r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " " + two_ + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j.is_array());
+  ASSERT_EQ(j.size(), 2u);
+  EXPECT_EQ(j[0]["impacts"], j[1]["impacts"]);
+  // One bad file among them: the others are printed, exit 12, its error in the array.
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " " + bad + " --json");
+  EXPECT_EQ(r.exit_code, 12);
+  j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j.size(), 2u);
+  EXPECT_EQ(j[1]["error"]["code"], "not_audio");
+  EXPECT_EQ(j[1]["error"]["exit_code"], 4);
+  EXPECT_NE(r.err.find(bad), std::string::npos);
+  // Alone, the bad file keeps its own code and prints nothing on stdout.
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + bad + " --json");
+  EXPECT_EQ(r.exit_code, 4);
+  EXPECT_TRUE(r.out.empty());
+  // Text and CSV: one block / rows with a file column per recording.
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " " + two_ + " --csv");
+  ASSERT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.out.rfind("file,sequence,index,time_s", 0), 0u) << r.out.substr(0, 80);
+  r = RunCommand(BOUNCECAL_BINARY, "analyze " + two_ + " " + two_);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::size_t blocks = 0;
+  for (std::size_t p = r.out.find(two_ + ":"); p != std::string::npos;
+       p = r.out.find(two_ + ":", p + 1))
+    ++blocks;
+  EXPECT_EQ(blocks, 2u);
+}
+
+TEST_F(DetectCliMore, ClickTrack) {
+  const std::string out = dir_ / "clicks.wav";
+  auto r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --click-track " + out + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const Audio in = ReadAudio(two_), clicks = ReadAudio(out);
+  ASSERT_EQ(clicks.info.channels, in.info.channels);
+  ASSERT_EQ(clicks.info.frames, in.info.frames);
+  // At every impact the click track departs from the (half-gain) recording by the click; 50 ms
+  // before the first impact it is the half-gain recording.
+  const double rate = in.info.sample_rate_hz;
+  for (const auto& imp : j["impacts"]) {
+    const std::size_t k = static_cast<std::size_t>(imp["time_s"].get<double>() * rate);
+    double dev = 0.0;
+    for (std::size_t i = k; i < k + 40; ++i)
+      dev = std::max(dev, std::fabs(clicks.channels[0][i] - 0.5 * in.channels[0][i]));
+    EXPECT_GT(dev, 0.2) << imp["time_s"];
+  }
+  const std::size_t q = static_cast<std::size_t>((first_drop_s_ - 0.05) * rate);
+  EXPECT_NEAR(clicks.channels[0][q], 0.5 * in.channels[0][q], 1e-4);
+  // It exists now: without --force, exit 11 and the file is untouched; never over an input.
+  const auto before = std::filesystem::last_write_time(out);
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --click-track " + out);
+  EXPECT_EQ(r.exit_code, 11);
+  EXPECT_EQ(std::filesystem::last_write_time(out), before);
+  EXPECT_EQ(RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --click-track " + out + " --force")
+                .exit_code,
+            0);
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --click-track " + two_ + " --force");
+  EXPECT_EQ(r.exit_code, 11);
+  EXPECT_NE(r.err.find("input"), std::string::npos) << r.err;
+  EXPECT_EQ(ReadAudio(two_).channels, in.channels);
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " " + two_ + " --click-track " + out);
+  EXPECT_EQ(r.exit_code, 2);
 }
 
 }  // namespace

@@ -15,6 +15,8 @@ namespace {
 // sample) on which the interpolated correlation peak is searched before a parabolic refinement.
 constexpr long kSincHalf = 8;
 constexpr int kPeakGrid = 32;
+// Members (best template matches) whose own AIC picks set the sequence's constant offset.
+constexpr std::size_t kAnchorMembers = 9;
 
 double WindowedSinc(double d) {
   if (std::fabs(d) >= static_cast<double>(kSincHalf)) return 0.0;
@@ -357,13 +359,9 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
     for (long j = 0; j < g.tl; ++j) yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
     const double s_c =
         std::max(1e-12, ProjectedNoise(nb, t.h, out->onset, rate_hz, o) / std::sqrt(t.hh * yy));
-    // The choice prefers the detection's neighbourhood (+- near) by far_ncc_margin, so a rival
-    // across that border needs the noise to overcome the margin too (or less of it).
-    const long s0 = anchor - g.lead;
-    const bool best_near = std::labs(lc.lag - s0) <= g.near;
-    const bool rival_near = std::labs(lc.rival_lag - s0) <= g.near;
-    const double margin = best_near == rival_near ? 0.0 : (best_near ? 1.0 : -1.0) * o.far_ncc_margin;
-    const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc + margin) / (2.0 * s_c));
+    // The choice prefers the detection's neighbourhood (+- near), but the detection's own time is
+    // not reliable on such weak impacts (it came from a whole-file template): no margin here.
+    const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc) / (2.0 * s_c));
     d->sigma_ambiguity =
         o.ambiguity_gain * std::sqrt(p) * static_cast<double>(std::labs(lc.rival_lag - lc.lag));
   }
@@ -458,9 +456,15 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   // is the template can change with the audio around the sequence (SNRs within a fraction of a
   // dB). The median over the members of (own AIC pick - template time) does not: shift every
   // time by it, so the offset is a property of the whole sequence.
+  // Only the members that match the template best take part (kAnchorMembers of them): the
+  // weak tail, which comes and goes with the audio around the sequence, does not move it.
+  std::vector<std::pair<double, std::size_t>> by_ncc;
+  for (std::size_t k = 0; k < n; ++k)
+    if (res.detail[k].by_template) by_ncc.push_back({-res.detail[k].ncc, k});
+  std::sort(by_ncc.begin(), by_ncc.end());
+  if (by_ncc.size() > kAnchorMembers) by_ncc.resize(kAnchorMembers);
   std::vector<double> shifts;
-  for (std::size_t k = 0; k < n; ++k) {
-    if (!res.detail[k].by_template) continue;
+  for (const auto& [neg_ncc, k] : by_ncc) {
     const AicPick p = AicAround(nb[k], std::lround(imps[k].time_s * rate_hz), g);
     if (p.valid) shifts.push_back(p.index + static_cast<double>(nb[k].begin) - imps[k].time_s * rate_hz);
   }
@@ -472,20 +476,26 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
       if (res.detail[k].by_template) imps[k].time_s += shift / rate_hz;
   }
   // The template's lag to itself is exact, but its shape differs from the others' as theirs
-  // differs from it: its sigma relative to the sequence is the typical sigma of the others.
-  // (Ambiguity left out: the template's own lag is never ambiguous.)
-  std::vector<double> others;
+  // differs from it (the median of the others' sigma without ambiguity: the template's own lag is
+  // never ambiguous), and the sequence's offset rests on the others' lags, whose median is
+  // uncertain by about 1.25 sigma / sqrt(n) (the median's standard error).
+  std::vector<double> shape, full;
   for (std::size_t k = 0; k < n; ++k) {
     const TimingDetail& d = res.detail[k];
-    if (k != tk && d.by_template)
-      others.push_back(std::sqrt(d.sigma_noise * d.sigma_noise + d.sigma_shape * d.sigma_shape +
-                                 d.sigma_resolution * d.sigma_resolution) /
-                       rate_hz);
+    if (k == tk || !d.by_template) continue;
+    shape.push_back(std::sqrt(d.sigma_noise * d.sigma_noise + d.sigma_shape * d.sigma_shape +
+                              d.sigma_resolution * d.sigma_resolution) /
+                    rate_hz);
+    full.push_back(imps[k].sigma_s);
   }
-  if (!others.empty()) {
-    const auto mid = others.begin() + static_cast<std::ptrdiff_t>(others.size() / 2);
-    std::nth_element(others.begin(), mid, others.end());
-    imps[tk].sigma_s = std::max(imps[tk].sigma_s, *mid);
+  if (!shape.empty()) {
+    auto median = [](std::vector<double> v) {
+      const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+      std::nth_element(v.begin(), mid, v.end());
+      return *mid;
+    };
+    const double m_full = 1.25 * median(full) / std::sqrt(static_cast<double>(full.size()));
+    imps[tk].sigma_s = std::max(imps[tk].sigma_s, std::hypot(median(shape), m_full));
   }
   return res;
 }

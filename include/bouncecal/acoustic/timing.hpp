@@ -14,7 +14,9 @@
 //   2. local whitening of a short segment around each member;
 //   3. local measures: SNR against the robust noise floor just before the onset, peak level;
 //   4. template: the whitened waveform of the member with the highest SNR (ties: the earliest);
-//      its own AIC change-point pick anchors the sequence (a constant offset for all members);
+//      members are timed relative to it, and the sequence's constant offset is set by the median
+//      of (own AIC change-point pick - template time) over the 9 best-matching members (so it
+//      does not depend on which member is the template, nor on the weak tail);
 //   5. each member is timed by the lag of its normalised cross-correlation (NCC) peak with the
 //      template (band-limited interpolation of the correlation around the peak); a member that
 //      does not match (NCC < min_template_ncc) is timed by its own AIC pick;
@@ -40,7 +42,9 @@
 //              dl: sqrt(p) |dl|, times ambiguity_gain;
 //   resolution: resolution_s (and resolution_samples): interpolation of the correlation peak;
 //   template member: its lag to itself is exact, but it is one of the shapes the others are
-//              matched to; its sigma is at least the median sigma of the others;
+//              matched to, and the sequence's offset rests on the others' lags: its sigma is at
+//              least hypot(median of the others' sigma without ambiguity, 1.25 x median of their
+//              sigma / sqrt(n)) (the median's standard error);
 //   AIC-timed members (no template match): the AIC window's width / sqrt(12) (the pick can land
 //              anywhere in it), times aic_sigma_gain.
 //
@@ -77,9 +81,9 @@ struct TimingOptions {
   double min_template_ncc = 0.2;  // below: AIC timing (sigma: the AIC window, uniform)
   // Sigma model constants, calibrated against exact truth on the six synthetic presets x 8 seeds
   // (tools/bench_detect --quick --seeds 8 --dump, a grid search minimising the largest
-  // |log RMS(err/sigma)| over the presets): RMS(err/sigma) 0.95-1.20 on every preset.
+  // |log RMS(err/sigma)| over the presets): RMS(err/sigma) 0.81-1.18 on every preset.
   double noise_gain = 0.6;          // the robust projected-noise spread overstates the noise
-  double ambiguity_gain = 2.0;
+  double ambiguity_gain = 1.5;
   double shape_s_per_neper = 3e-6;  // s per neper of level difference to the template
   double resolution_samples = 0.0;
   double resolution_s = 2e-6;

@@ -119,27 +119,24 @@ struct LagChoice {
   double rival_ncc = -2.0;  // its NCC (-2: none)
 };
 
-// Integer template start: the best NCC within +- near of the expected start s0, unless one
-// farther out (within +- far) is better by `margin` (ringing and echoes also match, so the
-// detection's time is preferred). The best rival outside the chosen peak's main lobe is searched
-// in all of +- far: the detection's own time can be off by a few tenths of a ms on weak impacts,
-// and whichever peak it pointed to, the ambiguity term then covers the other.
+// Integer template start: the best NCC within +- near of the expected start s0 (the detection's
+// time; a better match farther out is ringing or an echo as often as the impact: on the ping-pong
+// recording such picks were 0.7-1.4 ms early). The best rival outside the chosen peak's main lobe
+// is sought in all of +- far: the detection's own time can be off by a few tenths of a ms on weak
+// impacts (it came from a whole-file template), and the ambiguity term then covers the other.
 LagChoice BestLag(const Neighbourhood& nb, const std::vector<double>& h, double hh, long s0,
-                  long near, long far, double margin) {
+                  long near, long far) {
   const long lo = s0 - far, hi = s0 + far;
   std::vector<double> c(static_cast<std::size_t>(hi - lo + 1));
   for (long l = lo; l <= hi; ++l) c[static_cast<std::size_t>(l - lo)] = NccAt(nb, h, hh, l);
   auto at = [&](long l) { return c[static_cast<std::size_t>(l - lo)]; };
-  LagChoice best, far_best;
-  best.lag = far_best.lag = s0;
-  for (long l = lo; l <= hi; ++l) {
-    LagChoice& slot = std::labs(l - s0) <= near ? best : far_best;
-    if (at(l) > slot.ncc) {
-      slot.ncc = at(l);
-      slot.lag = l;
+  LagChoice best;
+  best.lag = s0;
+  for (long l = s0 - near; l <= s0 + near; ++l)
+    if (at(l) > best.ncc) {
+      best.ncc = at(l);
+      best.lag = l;
     }
-  }
-  if (far_best.ncc > best.ncc + margin) best = far_best;
   // Main lobe: walk down from the peak to the first local minimum on each side.
   long a = best.lag, b = best.lag;
   while (a > lo && at(a - 1) < at(a)) --a;
@@ -166,7 +163,6 @@ bool TimingOptions::IsValid(std::string* error) const {
         {"fit_after_s", fit_after_s},
         {"lead_s", lead_s},
         {"far_search_s", far_search_s},
-        {"far_ncc_margin", far_ncc_margin},
         {"noise_guard_s", noise_guard_s},
         {"ambiguity_gain", ambiguity_gain},
         {"resolution_samples", resolution_samples},
@@ -301,6 +297,7 @@ struct Template {
   std::size_t member = 0;
   double t_ref = 0.0;  // onset sample (fractional) of the template impact
   long start = 0;      // sample where the template starts
+  long anchor = 0;     // the template member's detection time (sample)
   std::vector<double> h, hd;
   double hh = 0.0, dd = 0.0;
   bool usable() const { return hh > 0.0 && dd > 0.0; }
@@ -315,6 +312,7 @@ Template MakeTemplate(const std::vector<Neighbourhood>& nb, const std::vector<lo
   const AicPick p = AicAround(tn, anchors[member], g);
   if (p.valid) t.t_ref = p.index + static_cast<double>(tn.begin);
   t.start = std::lround(t.t_ref) - g.lead;
+  t.anchor = anchors[member];
   t.h.resize(static_cast<std::size_t>(g.tl));
   t.hd.resize(t.h.size());
   for (long j = 0; j < g.tl; ++j) {
@@ -338,7 +336,11 @@ struct MemberTime {
 bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, const Template& t,
                     const Geometry& g, double rate_hz, const TimingOptions& o, MemberTime* out,
                     TimingDetail* d) {
-  const LagChoice lc = BestLag(nb, t.h, t.hh, anchor - g.lead, g.near, g.far, o.far_ncc_margin);
+  // Expected template start: where the template sits relative to its own detection time, moved
+  // to this member's detection time (the detection's convention for the onset need not be the
+  // template's AIC pick: their difference is the same for every member).
+  const long s0 = t.start + (anchor - t.anchor);
+  const LagChoice lc = BestLag(nb, t.h, t.hh, s0, g.near, g.far);
   d->ncc = lc.ncc;
   if (!is_template && lc.ncc < o.min_template_ncc) return false;
   // Sub-sample lag: band-limited interpolation of the NCC around the integer peak.
@@ -359,8 +361,6 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
     for (long j = 0; j < g.tl; ++j) yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
     const double s_c =
         std::max(1e-12, ProjectedNoise(nb, t.h, out->onset, rate_hz, o) / std::sqrt(t.hh * yy));
-    // The choice prefers the detection's neighbourhood (+- near), but the detection's own time is
-    // not reliable on such weak impacts (it came from a whole-file template): no margin here.
     const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc) / (2.0 * s_c));
     d->sigma_ambiguity =
         o.ambiguity_gain * std::sqrt(p) * static_cast<double>(std::labs(lc.rival_lag - lc.lag));

@@ -68,10 +68,8 @@ struct TimingOptions {
   double fit_after_s = 0.01;     // ... to this long after it
   double template_s = 0.0015;    // template length
   double lead_s = 1e-4;          // the template starts this long before its onset
-  double search_s = 3e-4;        // lag search: +- this around the detection's time ...
-  double far_search_s = 1.5e-3;  // ... or, if clearly better, up to this far (and rivals for the
-                                 // ambiguity term are sought in all of it)
-  double far_ncc_margin = 0.15;  // "clearly better": NCC higher by this much
+  double search_s = 3e-4;        // lag search: +- this around the detection's time
+  double far_search_s = 1.5e-3;  // rivals for the ambiguity term: +- this around it
   double aic_pre_s = 0.002;      // AIC window before / after the detection's time
   double aic_post_s = 0.0008;
   double noise_window_s = 0.02;  // SNR: noise floor from this long before the onset ...

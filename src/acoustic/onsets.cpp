@@ -349,18 +349,42 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   res.rate_hz = rate_hz_;
   res.sigma_floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
   res.whitened = Whiten(x, options_.lpc_order);
-  const std::vector<float>& w = res.whitened;
-  res.noise_rms = RobustRms(w);
-  const std::size_t n = w.size();
+  res.noise_rms = RobustRms(res.whitened);
+  const std::size_t n = res.whitened.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
   const std::size_t nw = static_cast<std::size_t>(window_);
   if (n < nw + hop) return res;
+  // 1-3. Relative spectral flux, adaptive threshold, peaks.
+  res.novelty_db = Novelty(res.whitened);
+  res.threshold_db = Threshold(res.novelty_db);
+  const std::vector<std::size_t> peaks = Peaks(res.novelty_db, res.threshold_db);
+  // 4. Refinement and per-impact measures at each peak's coarse onset.
+  const std::size_t pre =
+      std::max<std::size_t>(nw, static_cast<std::size_t>(options_.aic_pre_s * rate_hz_));
+  const std::size_t post =
+      std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
+  std::vector<long> window_lo, window_hi;  // onset samples the AIC window of each onset spans
+  for (std::size_t t : peaks) {
+    // The click is most likely in the newest half of the window at the flux peak.
+    const std::size_t centre = t * hop + nw / 2 + nw / 4;
+    res.onsets.push_back(Refine(x, res, centre, false));
+    window_lo.push_back(static_cast<long>(centre) - static_cast<long>(pre));
+    window_hi.push_back(static_cast<long>(centre + post));
+  }
+  // 5. Template pass.
+  TemplatePass(x, window_lo, window_hi, &res);
+  return res;
+}
+
+std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
+  const std::size_t n = w.size();
+  const std::size_t hop = static_cast<std::size_t>(hop_);
+  const std::size_t nw = static_cast<std::size_t>(window_);
   const std::size_t frames = (n - nw) / hop + 1;
   const std::size_t bins = nw / 2 + 1;
-
-  // 1. Relative spectral flux against the recent background: the reference spectrum R_t is
-  // the mean power of kRefFrames frames that end where frame t begins (no overlap with it,
-  // so a click cannot hide in its own reference):
+  // Relative spectral flux against the recent background: the reference spectrum R_t is the
+  // mean power of kRefFrames frames that end where frame t begins (no overlap with it, so a
+  // click cannot hide in its own reference):
   //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
   const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
   const std::size_t ring = lag + kRefFrames;
@@ -410,11 +434,16 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   std::vector<double> raw_db(frames);
   for (std::size_t t = 0; t < frames; ++t)
     raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
-  res.novelty_db.assign(frames, 0.0);
+  std::vector<double> novelty(frames, 0.0);
   for (std::size_t t = 1; t + 1 < frames; ++t)
-    res.novelty_db[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+    novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+  return novelty;
+}
 
-  // 2. Adaptive threshold: running median + k * MAD, evaluated on blocks and interpolated.
+std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) const {
+  // Running median + k * MAD, evaluated on blocks and interpolated.
+  const std::size_t frames = nov.size();
+  const std::size_t hop = static_cast<std::size_t>(hop_);
   const std::size_t win = std::max<std::size_t>(
       16, static_cast<std::size_t>(options_.median_window_s * rate_hz_ / static_cast<double>(hop)));
   const std::size_t blk = std::max<std::size_t>(1, win / 8);
@@ -428,13 +457,13 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
     // Every fourth frame of the window (~225 values at the default hop): the median and MAD of
     // the background are as good and a quarter of the work.
     buf.clear();
-    for (std::size_t q = lo; q < hi; q += 4) buf.push_back(res.novelty_db[q]);
+    for (std::size_t q = lo; q < hi; q += 4) buf.push_back(nov[q]);
     const double med = Median(buf);
     for (double& v : buf) v = std::fabs(v - med);
     const double mad = 1.4826 * Median(buf);
     blk_thr[b] = med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
   }
-  res.threshold_db.resize(frames);
+  std::vector<double> thr(frames);
   for (std::size_t t = 0; t < frames; ++t) {
     const double pos =
         (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
@@ -442,24 +471,36 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
     const std::size_t b0 = static_cast<std::size_t>(cl);
     const std::size_t b1 = std::min(nblk - 1, b0 + 1);
     const double fr = cl - static_cast<double>(b0);
-    res.threshold_db[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+    thr[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
   }
+  return thr;
+}
 
-  // 3. Peak picking: local maxima above threshold; within min_gap keep the stronger.
+std::vector<std::size_t> OnsetDetector::Peaks(const std::vector<double>& nov,
+                                              const std::vector<double>& thr) const {
+  // Local maxima above threshold; within min_gap keep the stronger.
   std::vector<std::size_t> peaks;
   const std::size_t gap =
-      static_cast<std::size_t>(options_.min_gap_s * rate_hz_ / static_cast<double>(hop));
-  const auto& nov = res.novelty_db;
-  for (std::size_t t = 1; t + 1 < frames; ++t) {
-    if (nov[t] <= res.threshold_db[t] || nov[t] < nov[t - 1] || nov[t] <= nov[t + 1]) continue;
+      static_cast<std::size_t>(options_.min_gap_s * rate_hz_ / static_cast<double>(hop_));
+  for (std::size_t t = 1; t + 1 < nov.size(); ++t) {
+    if (nov[t] <= thr[t] || nov[t] < nov[t - 1] || nov[t] <= nov[t + 1]) continue;
     if (!peaks.empty() && t - peaks.back() <= gap) {
       if (nov[t] > nov[peaks.back()]) peaks.back() = t;
       continue;
     }
     peaks.push_back(t);
   }
+  return peaks;
+}
 
-  // 4. Refinement and per-impact measures. `centre`: coarse onset sample.
+Impact OnsetDetector::Refine(const std::vector<float>& x, const OnsetResult& res,
+                             std::size_t centre, bool tight) const {
+  // AIC pick around the coarse onset `centre`; tight: the coarse onset is already good to a few
+  // samples (template match), so the window is narrower.
+  const std::vector<float>& w = res.whitened;
+  const std::size_t n = w.size();
+  const std::size_t hop = static_cast<std::size_t>(hop_);
+  const std::size_t nw = static_cast<std::size_t>(window_);
   const std::size_t pre =
       std::max<std::size_t>(nw, static_cast<std::size_t>(options_.aic_pre_s * rate_hz_));
   const std::size_t post =
@@ -467,218 +508,220 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   const double noise_var = std::max(res.noise_rms * res.noise_rms, 1e-30);
   // Timing floor: the AIC pick keeps a bias of a fraction of a sample that depends on where the
   // onset falls between samples (measured on rendered clicks, tests/onsets_test.cpp).
-  const double floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
-  // tight: the coarse onset is already good to a few samples (template match).
-  auto make_impact = [&](std::size_t centre, bool tight) {
-    double onset = static_cast<double>(centre);
-    double sigma = static_cast<double>(hop) / std::sqrt(12.0);
-    {
-      const std::size_t pr = tight ? std::max<std::size_t>(16, pre / 3) : pre;
-      const std::size_t po = tight ? std::max<std::size_t>(8, post / 2) : post;
-      const std::size_t b = centre > pr ? centre - pr : 0;
-      const AicPick p = PickAic(w, b, std::min(n, centre + po), options_.aic_upsample);
-      if (p.valid) {
-        onset = p.index;
-        sigma = p.sigma;
-      }
+  const double floor_s = res.sigma_floor_s;
+  double onset = static_cast<double>(centre);
+  double sigma = static_cast<double>(hop) / std::sqrt(12.0);
+  {
+    const std::size_t pr = tight ? std::max<std::size_t>(16, pre / 3) : pre;
+    const std::size_t po = tight ? std::max<std::size_t>(8, post / 2) : post;
+    const std::size_t b = centre > pr ? centre - pr : 0;
+    const AicPick p = PickAic(w, b, std::min(n, centre + po), options_.aic_upsample);
+    if (p.valid) {
+      onset = p.index;
+      sigma = p.sigma;
     }
-    Impact imp;
-    imp.time_s = onset / rate_hz_;
-    imp.sigma_s = std::hypot(sigma / rate_hz_, floor_s);
-    const std::size_t i0 =
-        std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
-    const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
-    double amp = 0.0;
-    for (std::size_t i = i0; i < pk_end; ++i)
-      amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
-    imp.amplitude = amp;
-    // SNR: whitened power just after the onset over the power in the 10 ms before it.
-    const std::size_t len_post =
-        std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
-    double e_post = 0.0;
-    std::size_t c_post = 0;
-    for (std::size_t i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
-      e_post += static_cast<double>(w[i]) * w[i];
-    const std::size_t pre_end = i0 > 2 ? i0 - 2 : 0;
-    const std::size_t pre_len = static_cast<std::size_t>(0.01 * rate_hz_);
-    const std::size_t pre_begin = pre_end > pre_len ? pre_end - pre_len : 0;
-    double e_pre = 0.0;
-    for (std::size_t i = pre_begin; i < pre_end; ++i) e_pre += static_cast<double>(w[i]) * w[i];
-    const double p_post = c_post ? e_post / static_cast<double>(c_post) : 0.0;
-    const double p_pre =
-        pre_end > pre_begin ? e_pre / static_cast<double>(pre_end - pre_begin) : noise_var;
-    imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * noise_var) + 1e-30));
-    return imp;
-  };
-  std::vector<long> window_lo, window_hi;  // onset samples the AIC window of each onset spans
-  for (std::size_t t : peaks) {
-    // The click is most likely in the newest half of the window at the flux peak.
-    const std::size_t centre = t * hop + nw / 2 + nw / 4;
-    res.onsets.push_back(make_impact(centre, false));
-    window_lo.push_back(static_cast<long>(centre) - static_cast<long>(pre));
-    window_hi.push_back(static_cast<long>(centre + post));
   }
+  Impact imp;
+  imp.time_s = onset / rate_hz_;
+  imp.sigma_s = std::hypot(sigma / rate_hz_, floor_s);
+  const std::size_t i0 = std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
+  const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
+  double amp = 0.0;
+  for (std::size_t i = i0; i < pk_end; ++i) amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
+  imp.amplitude = amp;
+  // SNR: whitened power just after the onset over the power in the 10 ms before it.
+  const std::size_t len_post = std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
+  double e_post = 0.0;
+  std::size_t c_post = 0;
+  for (std::size_t i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
+    e_post += static_cast<double>(w[i]) * w[i];
+  const std::size_t pre_end = i0 > 2 ? i0 - 2 : 0;
+  const std::size_t pre_len = static_cast<std::size_t>(0.01 * rate_hz_);
+  const std::size_t pre_begin = pre_end > pre_len ? pre_end - pre_len : 0;
+  double e_pre = 0.0;
+  for (std::size_t i = pre_begin; i < pre_end; ++i) e_pre += static_cast<double>(w[i]) * w[i];
+  const double p_post = c_post ? e_post / static_cast<double>(c_post) : 0.0;
+  const double p_pre =
+      pre_end > pre_begin ? e_pre / static_cast<double>(pre_end - pre_begin) : noise_var;
+  imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * noise_var) + 1e-30));
+  return imp;
+}
 
-  // 5. Template pass: the impacts of one ball on one plate look alike. The whitened waveform of
-  // the strongest onset is the template; its normalised cross-correlation (NCC) with the whole
-  // whitened signal (FFT overlap-save) finds impacts the flux missed (late impacts on top of
-  // ringing) and scores every onset (Impact::score).
-  if (res.onsets.empty()) return res;
-  std::size_t strongest = 0;
-  for (std::size_t i = 1; i < res.onsets.size(); ++i)
-    if (res.onsets[i].snr_db > res.onsets[strongest].snr_db) strongest = i;
-  const std::size_t lead = static_cast<std::size_t>(0.1e-3 * rate_hz_) + 1;
-  const std::size_t tl = static_cast<std::size_t>(template_len_);
-  const long ref_start =
-      std::lround(res.onsets[strongest].time_s * rate_hz_) - static_cast<long>(lead);
-  if (ref_start < 0 || static_cast<std::size_t>(ref_start) + tl > n) return res;
-  std::vector<double> h(tl);
+// The template and its normalised cross-correlation with the whole whitened signal.
+struct OnsetDetector::TemplateMatch {
+  std::vector<float> xc;  // sum_j h[j] w[i + j]
+  std::vector<float> ww;  // energy of w under the template at each start
   double hh = 0.0;
-  for (std::size_t j = 0; j < tl; ++j) {
-    h[j] = w[static_cast<std::size_t>(ref_start) + j];
-    hh += h[j] * h[j];
+  long ref_start = 0;  // template start sample
+  double t_ref = 0.0;  // its onset time (AIC pick of the strongest onset)
+  long lead = 0;       // samples from the template start to its onset
+  double Ncc(std::size_t i) const {
+    const double e = ww[i];
+    return e > 0.0 ? static_cast<double>(xc[i]) / std::sqrt(hh * e) : 0.0;
   }
-  if (!(hh > 0.0)) return res;
-  res.template_wave = h;
-  res.template_start = ref_start;
-  res.template_onset_s = res.onsets[strongest].time_s;
-  const std::vector<float> xc = corr_->Correlate(w, h);
+};
+
+bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
+  const std::vector<float>& w = res->whitened;
+  const std::size_t n = w.size();
+  std::size_t strongest = 0;
+  for (std::size_t i = 1; i < res->onsets.size(); ++i)
+    if (res->onsets[i].snr_db > res->onsets[strongest].snr_db) strongest = i;
+  m->lead = static_cast<long>(0.1e-3 * rate_hz_) + 1;
+  const std::size_t tl = static_cast<std::size_t>(template_len_);
+  m->ref_start = std::lround(res->onsets[strongest].time_s * rate_hz_) - m->lead;
+  if (m->ref_start < 0 || static_cast<std::size_t>(m->ref_start) + tl > n) return false;
+  std::vector<double> h(tl);
+  for (std::size_t j = 0; j < tl; ++j) {
+    h[j] = w[static_cast<std::size_t>(m->ref_start) + j];
+    m->hh += h[j] * h[j];
+  }
+  if (!(m->hh > 0.0)) return false;
+  res->template_wave = h;
+  res->template_start = m->ref_start;
+  res->template_onset_s = res->onsets[strongest].time_s;
+  m->t_ref = res->onsets[strongest].time_s;
+  m->xc = corr_->Correlate(w, h);
   // Energy of w under the template at each start: ww[i] = sum of w^2 over [i, min(n, i + tl)),
   // a running sum (float storage: half the memory of double prefix sums, which dominated the
   // allocation cost), recomputed exactly every 8192 samples so rounding cannot accumulate.
-  std::vector<float> ww(n);
-  {
-    for (std::size_t b = 0; b < n; b += 8192) {
-      double run = 0.0;
-      for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
-      ww[b] = static_cast<float>(run);
-      const std::size_t e = std::min(n, b + 8192);
-      const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
-      std::size_t i = b + 1;
-      for (; i < e_in; ++i) {
-        const double in_v = w[i + tl - 1], out_v = w[i - 1];
-        run += in_v * in_v - out_v * out_v;
-        ww[i] = static_cast<float>(std::max(run, 0.0));
-      }
-      for (; i < e; ++i) {
-        const double out_v = w[i - 1];
-        run -= out_v * out_v;
-        ww[i] = static_cast<float>(std::max(run, 0.0));
-      }
+  m->ww.assign(n, 0.0f);
+  for (std::size_t b = 0; b < n; b += 8192) {
+    double run = 0.0;
+    for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
+    m->ww[b] = static_cast<float>(run);
+    const std::size_t e = std::min(n, b + 8192);
+    const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
+    std::size_t i = b + 1;
+    for (; i < e_in; ++i) {
+      const double in_v = w[i + tl - 1], out_v = w[i - 1];
+      run += in_v * in_v - out_v * out_v;
+      m->ww[i] = static_cast<float>(std::max(run, 0.0));
+    }
+    for (; i < e; ++i) {
+      const double out_v = w[i - 1];
+      run -= out_v * out_v;
+      m->ww[i] = static_cast<float>(std::max(run, 0.0));
     }
   }
-  auto ncc = [&](std::size_t i) {
-    const double e = ww[i];
-    return e > 0.0 ? static_cast<double>(xc[i]) / std::sqrt(hh * e) : 0.0;
-  };
+  return true;
+}
+
+void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, Impact* im) const {
+  // The impacts of one ball on one plate have the same waveform up to level, so the
+  // cross-correlation lag to the template times them relative to the template's own onset far
+  // more consistently than an AIC pick on each: the AIC moves with the level (it finds the first
+  // sample that stands out of the background, later for a quiet impact) and jumps to a later
+  // rise when the onset is weak or slow. Measured on the corpus (steel on copper, ping-pong on
+  // wood): AIC picks scatter by 5-30 us around the truth and a few jump by 30-2000 us; NCC lags
+  // scatter by 1-5 us (tools/bench_detect). Every impact with a clear match
+  // (NCC >= template_timing_ncc) is therefore timed by the template. t_guess: the AIC pick;
+  // [lo, hi]: template starts the AIC window allowed (the pick can land anywhere in it).
+  const long n = static_cast<long>(m.ww.size());
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
-  for (Impact& im : res.onsets) {
-    const long s0 = std::lround(im.time_s * rate_hz_) - static_cast<long>(lead);
+  const long s0 = std::lround(im->time_s * rate_hz_) - m.lead;
+  // Best NCC within +-maxlag of the guess; a farther one (in the AIC window or 2 maxlag around
+  // the guess) only if it is clearly better (ball ringing and echoes also match).
+  long best_l = -1, far_l = -1;
+  double best_c = -2.0, far_c = -2.0;
+  const long from = std::max(1L, std::min(lo, s0 - 2 * maxlag));
+  const long to = std::min(n - 2, std::max(hi, s0 + 2 * maxlag));
+  for (long l = from; l <= to; ++l) {
+    const double c = m.Ncc(static_cast<std::size_t>(l));
+    const bool near = std::labs(l - s0) <= maxlag;
+    if (near && c > best_c) {
+      best_c = c;
+      best_l = l;
+    }
+    if (!near && c > far_c) {
+      far_c = c;
+      far_l = l;
+    }
+  }
+  if (far_c > best_c + 0.15) {
+    best_c = far_c;
+    best_l = far_l;
+  }
+  if (best_c < options_.template_timing_ncc || best_l < 1) return;
+  const double cm = m.Ncc(static_cast<std::size_t>(best_l - 1));
+  const double cp = m.Ncc(static_cast<std::size_t>(best_l + 1));
+  const double curv = cm - 2.0 * best_c + cp;
+  const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
+  im->time_s = m.t_ref + (static_cast<double>(best_l - m.ref_start) + d) / rate_hz_;
+  im->score = std::max(im->score, std::min(best_c, 1.0));
+  // NCC peak precision ~ sqrt(1 - c^2) / c samples (scaled), plus the floor. (The final timing
+  // of sequence members, with its calibrated sigma, is timing.hpp's.)
+  const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - best_c * best_c)) / best_c;
+  im->sigma_s = std::hypot(sig_samples / rate_hz_,
+                           std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_));
+}
+
+void OnsetDetector::BlindTemplateSearch(const std::vector<float>& x, const TemplateMatch& m,
+                                        OnsetResult* res) const {
+  // Onsets the flux missed (late impacts on top of ringing): starts where the NCC with the
+  // template reaches template_threshold, away from the known onsets.
+  std::vector<double> known;
+  for (const Impact& im : res->onsets) known.push_back(im.time_s);
+  std::sort(known.begin(), known.end());
+  const std::size_t n = m.ww.size();
+  const std::size_t tl = static_cast<std::size_t>(template_len_);
+  const std::size_t gap_s = static_cast<std::size_t>(options_.min_gap_s * rate_hz_);
+  // The NCC of a template of L samples with white noise has a standard deviation of about
+  // 1/sqrt(L): ask for 4 of those at least, so short templates (low rates) stay selective.
+  const double ncc_min =
+      std::max(options_.template_threshold, 4.0 / std::sqrt(static_cast<double>(tl)));
+  std::vector<std::pair<std::size_t, double>> found;  // (start sample, ncc)
+  const double k2 = ncc_min * ncc_min * m.hh;
+  for (std::size_t i = 1; i + tl < n; ++i) {
+    // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt, one branch).
+    const double c_i = m.xc[i];
+    if (!(c_i > 0.0) | (c_i * c_i < k2 * static_cast<double>(m.ww[i]))) continue;
+    const double c = m.Ncc(i);
+    if (!found.empty() && i - found.back().first <= gap_s) {
+      if (c > found.back().second) found.back() = {i, c};
+      continue;
+    }
+    found.push_back({i, c});
+  }
+  const std::size_t before = res->onsets.size();
+  const std::size_t lead = static_cast<std::size_t>(m.lead);
+  for (const auto& [i, c] : found) {
+    const double t = static_cast<double>(i + lead) / rate_hz_;
+    auto it = std::lower_bound(known.begin(), known.end(), t);
+    const bool near_known = (it != known.end() && *it - t < options_.min_gap_s) ||
+                            (it != known.begin() && t - *(it - 1) < options_.min_gap_s);
+    if (near_known) continue;
+    Impact imp = Refine(x, *res, i + lead, true);
+    imp.score = std::clamp(c, 0.0, 1.0);
+    const long s0 = static_cast<long>(i);
+    TimeWithTemplate(m, s0, s0, &imp);
+    res->onsets.push_back(imp);
+  }
+  if (res->onsets.size() != before)
+    std::sort(res->onsets.begin(), res->onsets.end(),
+              [](const Impact& a, const Impact& b) { return a.time_s < b.time_s; });
+}
+
+void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<long>& window_lo,
+                                 const std::vector<long>& window_hi, OnsetResult* res) const {
+  // The impacts of one ball on one plate look alike: the whitened waveform of the strongest
+  // onset is the template; its NCC with the whole whitened signal (FFT overlap-save) scores
+  // every onset (Impact::score), times the clear matches and finds impacts the flux missed.
+  if (res->onsets.empty()) return;
+  TemplateMatch m;
+  if (!BuildTemplate(res, &m)) return;
+  const long n = static_cast<long>(m.ww.size());
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  for (Impact& im : res->onsets) {
+    const long s0 = std::lround(im.time_s * rate_hz_) - m.lead;
     double best = 0.0;
-    for (long l = std::max(0L, s0 - maxlag); l <= s0 + maxlag && l < static_cast<long>(n); ++l)
-      best = std::max(best, ncc(static_cast<std::size_t>(l)));
+    for (long l = std::max(0L, s0 - maxlag); l <= s0 + maxlag && l < n; ++l)
+      best = std::max(best, m.Ncc(static_cast<std::size_t>(l)));
     im.score = std::clamp(best, 0.0, 1.0);
   }
-  // Template time: the NCC peak (parabolic interpolation) gives the onset relative to the
-  // template's own onset. t_guess: the AIC pick; [lo, hi]: template starts the AIC window
-  // allowed (the pick can land anywhere in it when the onset is weak).
-  const double t_ref = res.onsets[strongest].time_s;
-  auto template_time = [&](double t_guess, long lo, long hi, double* c_out) {
-    const long s0 = std::lround(t_guess * rate_hz_) - static_cast<long>(lead);
-    // Best NCC within +-maxlag of the guess; a farther one (in the AIC window or 2 maxlag
-    // around the guess) only if it is clearly better (ball ringing and echoes also match).
-    long best_l = -1, far_l = -1;
-    double best_c = -2.0, far_c = -2.0;
-    const long search = 2 * maxlag;
-    const long from = std::max(1L, std::min(lo, s0 - search));
-    const long to = std::min(static_cast<long>(n) - 2, std::max(hi, s0 + search));
-    for (long l = from; l <= to; ++l) {
-      const double c = ncc(static_cast<std::size_t>(l));
-      const bool near = std::labs(l - s0) <= maxlag;
-      if (near && c > best_c) {
-        best_c = c;
-        best_l = l;
-      }
-      if (!near && c > far_c) {
-        far_c = c;
-        far_l = l;
-      }
-    }
-    if (far_c > best_c + 0.15) {
-      best_c = far_c;
-      best_l = far_l;
-    }
-    *c_out = best_c;
-    if (best_l < 1) return t_guess;
-    const double cm = ncc(static_cast<std::size_t>(best_l - 1));
-    const double cp = ncc(static_cast<std::size_t>(best_l + 1));
-    const double curv = cm - 2.0 * best_c + cp;
-    const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
-    return t_ref + (static_cast<double>(best_l - ref_start) + d) / rate_hz_;
-  };
-  // Template timing: the impacts of one ball on one plate have the same waveform up to level,
-  // so the cross-correlation lag to the template times them relative to the template's own onset
-  // far more consistently than an AIC pick on each: the AIC moves with the level (it finds the
-  // first sample that stands out of the background, later for a quiet impact) and jumps to a
-  // later rise when the onset is weak or slow. Measured on the corpus (steel on copper, ping-pong
-  // on wood): AIC picks scatter by 5-30 us around the truth and a few jump by 30-2000 us; NCC
-  // lags scatter by 1-5 us (tools/bench_detect). Every impact with a clear match
-  // (NCC >= template_timing_ncc) is therefore timed by the template; the AIC pick of the template
-  // impact anchors them all (a constant offset, which cancels in intervals).
-  auto check_with_template = [&](Impact& im, long lo, long hi) {
-    double c = 0.0;
-    const double tt = template_time(im.time_s, lo, hi, &c);
-    if (c < options_.template_timing_ncc) return;
-    im.time_s = tt;
-    im.score = std::max(im.score, std::min(c, 1.0));
-    // NCC peak precision ~ sqrt(1 - c^2) / c samples (scaled), plus the floor.
-    const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - c * c)) / c;
-    im.sigma_s = std::hypot(sig_samples / rate_hz_, floor_s);
-  };
-  for (std::size_t i = 0; i < res.onsets.size(); ++i)
-    check_with_template(res.onsets[i], window_lo[i] - static_cast<long>(lead),
-                        window_hi[i] - static_cast<long>(lead));
-
-  if (options_.template_threshold < 1.0) {
-    std::vector<double> known;
-    for (const Impact& im : res.onsets) known.push_back(im.time_s);
-    std::sort(known.begin(), known.end());
-    const std::size_t gap_s = static_cast<std::size_t>(options_.min_gap_s * rate_hz_);
-    // The NCC of a template of L samples with white noise has a standard deviation of about
-    // 1/sqrt(L): ask for 4 of those at least, so short templates (low rates) stay selective.
-    const double ncc_min =
-        std::max(options_.template_threshold, 4.0 / std::sqrt(static_cast<double>(tl)));
-    std::vector<std::pair<std::size_t, double>> found;  // (start sample, ncc)
-    const double k2 = ncc_min * ncc_min * hh;
-    for (std::size_t i = 1; i + tl < n; ++i) {
-      // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt, one branch).
-      const double c_i = xc[i];
-      if (!(c_i > 0.0) | (c_i * c_i < k2 * static_cast<double>(ww[i]))) continue;
-      const double c = ncc(i);
-      if (!found.empty() && i - found.back().first <= gap_s) {
-        if (c > found.back().second) found.back() = {i, c};
-        continue;
-      }
-      found.push_back({i, c});
-    }
-    const std::size_t before = res.onsets.size();
-    for (const auto& [i, c] : found) {
-      const double t = static_cast<double>(i + lead) / rate_hz_;
-      auto it = std::lower_bound(known.begin(), known.end(), t);
-      const bool near_known = (it != known.end() && *it - t < options_.min_gap_s) ||
-                              (it != known.begin() && t - *(it - 1) < options_.min_gap_s);
-      if (near_known) continue;
-      Impact imp = make_impact(i + lead, true);
-      imp.score = std::clamp(c, 0.0, 1.0);
-      const long s0 = static_cast<long>(i);
-      check_with_template(imp, s0, s0);
-      res.onsets.push_back(imp);
-    }
-    if (res.onsets.size() != before)
-      std::sort(res.onsets.begin(), res.onsets.end(),
-                [](const Impact& a, const Impact& b) { return a.time_s < b.time_s; });
-  }
-  return res;
+  for (std::size_t i = 0; i < res->onsets.size(); ++i)
+    TimeWithTemplate(m, window_lo[i] - m.lead, window_hi[i] - m.lead, &res->onsets[i]);
+  if (options_.template_threshold < 1.0) BlindTemplateSearch(x, m, res);
 }
 
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,

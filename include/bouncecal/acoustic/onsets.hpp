@@ -123,7 +123,23 @@ class OnsetDetector {
   int window_samples() const { return window_; }
 
  private:
+  // The stages of Detect, in order.
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
+  std::vector<double> Novelty(const std::vector<float>& whitened) const;  // 1. flux, dB
+  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // 2. adaptive
+  std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
+                                 const std::vector<double>& threshold) const;  // 3. frames
+  // 4. AIC refinement and measures at a coarse onset sample.
+  Impact Refine(const std::vector<float>& samples, const OnsetResult& res, std::size_t centre,
+                bool tight) const;
+  // 5. Template pass: build, score, time the clear matches, search blind.
+  struct TemplateMatch;
+  void TemplatePass(const std::vector<float>& samples, const std::vector<long>& window_lo,
+                    const std::vector<long>& window_hi, OnsetResult* res) const;
+  bool BuildTemplate(OnsetResult* res, TemplateMatch* m) const;
+  void TimeWithTemplate(const TemplateMatch& m, long lo, long hi, Impact* im) const;
+  void BlindTemplateSearch(const std::vector<float>& samples, const TemplateMatch& m,
+                           OnsetResult* res) const;
   struct Fft;
   struct Correlator;
   OnsetOptions options_;

@@ -412,8 +412,8 @@ TEST_F(AudioTest, WriteErrors) {
 // for the tests). Returns false when ffmpeg is not there (a failure under CI=true).
 bool MakeM4a(const std::string& wav, const std::string& m4a) {
   if (std::system("command -v ffmpeg > /dev/null 2>&1") != 0) return false;
-  const std::string cmd = "ffmpeg -nostdin -loglevel error -y -i '" + wav +
-                          "' -c:a aac -b:a 160k '" + m4a + "'";
+  const std::string cmd =
+      "ffmpeg -nostdin -loglevel error -y -i '" + wav + "' -c:a aac -b:a 160k '" + m4a + "'";
   return std::system(cmd.c_str()) == 0;
 }
 
@@ -424,7 +424,8 @@ TEST_F(AudioTest, M4aAacIsDecodedByFfmpegAndDetected) {
   if (!MakeM4a(wav, m4a)) {
     const char* ci = std::getenv("CI");
     if (ci && std::string(ci) == "true") FAIL() << "ffmpeg is needed to make the m4a test file";
-    GTEST_SKIP() << "no ffmpeg program to make the m4a test file (tools/install-deps.sh installs it)";
+    GTEST_SKIP()
+        << "no ffmpeg program to make the m4a test file (tools/install-deps.sh installs it)";
   }
   const Audio a = ReadAudio(m4a);
   EXPECT_EQ(a.info.decoder, "ffmpeg");
@@ -436,8 +437,8 @@ TEST_F(AudioTest, M4aAacIsDecodedByFfmpegAndDetected) {
   // decoded length is the original's to within one frame of padding at the end.
   EXPECT_EQ(a.info.codec_delay_samples, 1024);
   EXPECT_TRUE(a.info.codec_delay_trimmed);
-  EXPECT_NEAR(static_cast<double>(a.info.frames), static_cast<double>(s.recording.channels[0].size()),
-              1024.0);
+  EXPECT_NEAR(static_cast<double>(a.info.frames),
+              static_cast<double>(s.recording.channels[0].size()), 1024.0);
   // The same impacts as from the WAV: intervals within 20 us (AAC at 160 kb/s; measured 0.6 us
   // median, 4.5 us max), and a coded warning that the audio went through a lossy codec.
   const DetectionResult rw = DetectImpacts(ReadAudio(wav), DetectOptions{});

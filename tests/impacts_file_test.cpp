@@ -53,7 +53,8 @@ TEST(ImpactsFile, EveryFormat) {
   f = ReadImpactsFile(Write(d, "c.csv", "\"Time (s)\";\"Level\"\n0.2;1\n0.6;1\n0.96;1\n"));
   EXPECT_EQ(Times(f.sequences[0]), (std::vector<double>{0.2, 0.6, 0.96}));
   // Audacity labels.
-  f = ReadImpactsFile(Write(d, "labels.txt", "0.200000\t0.200000\timpact\n0.6\t0.6\t\n0.96\t0.97\tx\n"));
+  f = ReadImpactsFile(
+      Write(d, "labels.txt", "0.200000\t0.200000\timpact\n0.6\t0.6\t\n0.96\t0.97\tx\n"));
   EXPECT_EQ(f.format, "audacity-labels");
   EXPECT_EQ(Times(f.sequences[0]), (std::vector<double>{0.2, 0.6, 0.96}));
   // aubioonset output: one time per line.
@@ -71,8 +72,7 @@ TEST(ImpactsFile, EveryFormat) {
 TEST(ImpactsFile, ADeletedImpactIsFlaggedAsAGap) {
   ScratchDir d("impacts");
   // 1.0, 1.4, 1.76, [2.084 deleted], 2.3756: the interval 1.76 -> 2.3756 is two flights.
-  const ImpactsFile f =
-      ReadImpactsFile(Write(d, "gap.txt", "1.0\n1.4\n1.76\n2.3756\n2.6380\n"));
+  const ImpactsFile f = ReadImpactsFile(Write(d, "gap.txt", "1.0\n1.4\n1.76\n2.3756\n2.6380\n"));
   EXPECT_EQ(f.sequences[0].missed_after, (std::vector<int>{2}));
 }
 

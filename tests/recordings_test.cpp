@@ -56,12 +56,12 @@ bool UnderCi() {
 }
 
 // The recording's path; skips (or, under CI=true, fails) when it is absent.
-#define REQUIRE_RECORDING(wav)                                                        \
-  do {                                                                                \
-    if (!std::filesystem::exists(wav)) {                                              \
-      if (UnderCi()) FAIL() << "CI=true but " << (wav) << " is missing";              \
-      GTEST_SKIP() << "no " << (wav) << " (../shared/recordings absent)";             \
-    }                                                                                 \
+#define REQUIRE_RECORDING(wav)                                            \
+  do {                                                                    \
+    if (!std::filesystem::exists(wav)) {                                  \
+      if (UnderCi()) FAIL() << "CI=true but " << (wav) << " is missing";  \
+      GTEST_SKIP() << "no " << (wav) << " (../shared/recordings absent)"; \
+    }                                                                     \
   } while (0)
 
 class Recordings : public ::testing::TestWithParam<std::string> {};
@@ -135,7 +135,8 @@ const std::filesystem::path kPfe =
 TEST(RealRecordings, HandlingNoiseBeforeTheDropIsNoSequence) {
   REQUIRE_RECORDING(kPfe);
   const DetectionResult r = DetectImpacts(ReadAudio(kPfe.string()), DetectOptions{});
-  for (const Sequence& q : r.sequences) EXPECT_GT(q.impacts.front().time_s, 3.1) << q.impacts.size();
+  for (const Sequence& q : r.sequences)
+    EXPECT_GT(q.impacts.front().time_s, 3.1) << q.impacts.size();
   EXPECT_NEAR(r.main().impacts.front().time_s, 3.1367, 0.003);
   EXPECT_TRUE(HasWarning(r.warnings, "phantom_removed"));
   EXPECT_EQ(r.channel_scores.size(), 3u);  // both channels and the mix were scored
@@ -164,7 +165,8 @@ TEST(RealRecordings, StartInvarianceAtFiveOffsets) {
         const Impact* best = nullptr;
         for (const Sequence& qb : r.sequences)
           for (const Impact& b : qb.impacts)
-            if (!best || std::fabs(b.time_s + shift - a.time_s) < std::fabs(best->time_s + shift - a.time_s))
+            if (!best ||
+                std::fabs(b.time_s + shift - a.time_s) < std::fabs(best->time_s + shift - a.time_s))
               best = &b;
         if (!best || std::fabs(best->time_s + shift - a.time_s) > 0.005) continue;
         ++matched;

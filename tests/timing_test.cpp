@@ -22,7 +22,8 @@ Audio InMemory(std::vector<std::vector<float>> ch, double rate, const std::strin
   a.info.sample_rate_hz = rate;
   a.info.channels = static_cast<int>(ch.size());
   a.info.frames = static_cast<std::int64_t>(ch[0].size());
-  for (std::size_t c = 0; c < ch.size(); ++c) a.clipping.push_back(AnalyzeClipping(ch[c], static_cast<int>(c)));
+  for (std::size_t c = 0; c < ch.size(); ++c)
+    a.clipping.push_back(AnalyzeClipping(ch[c], static_cast<int>(c)));
   a.channels = std::move(ch);
   return a;
 }
@@ -180,8 +181,8 @@ TEST(Timing, StartInvarianceAtFiveOffsets) {
     for (const Impact& a : full.main().impacts) {
       const Impact* best = nullptr;
       for (const Impact& b : part.main().impacts)
-        if (!best || std::fabs(b.time_s + shift - a.time_s) <
-                         std::fabs(best->time_s + shift - a.time_s))
+        if (!best ||
+            std::fabs(b.time_s + shift - a.time_s) < std::fabs(best->time_s + shift - a.time_s))
           best = &b;
       if (!best || std::fabs(best->time_s + shift - a.time_s) > 1e-3) continue;
       ++compared;

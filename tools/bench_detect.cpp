@@ -273,11 +273,12 @@ void DumpTiming(const std::string& path, const Corpus& c, const RunOut& r) {
         if (!best || std::fabs(t.t - im.time_s) < std::fabs(best->t - im.time_s)) best = &t;
       const bool matched = best && std::fabs(best->t - im.time_s) <= 1e-3;
       const TimingDetail& d = tr.detail[k];
-      std::fprintf(f, "%s,%d,%zu,%zu,%.9e,%.4e,%d,%.4f,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.2f,%d,%.0f\n",
+      std::fprintf(f,
+                   "%s,%d,%zu,%zu,%.9e,%.4e,%d,%.4f,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.2f,%d,%.0f\n",
                    c.preset.c_str(), c.seed, q, k, matched ? im.time_s - best->t : NAN, im.sigma_s,
-                   d.by_template ? 1 : 0, d.ncc, d.sigma_noise, d.sigma_shape, d.sigma_ambiguity, d.level_ratio, 0.0, d.noise_rms,
-                   im.amplitude, im.snr_db, matched ? (best->eligible ? 1 : 0) : -1,
-                   c.audio.info.sample_rate_hz);
+                   d.by_template ? 1 : 0, d.ncc, d.sigma_noise, d.sigma_shape, d.sigma_ambiguity,
+                   d.level_ratio, d.noise_rms, im.amplitude, im.snr_db,
+                   matched ? (best->eligible ? 1 : 0) : -1, c.audio.info.sample_rate_hz);
     }
   }
   std::fclose(f);
@@ -324,7 +325,6 @@ void PrintAccuracyRow(const std::string& preset, const std::string& who, const M
               F("%.2e", Rms(m.e_err)).c_str(), F("%.2e", Rms(m.e_err_long)).c_str());
 }
 
-
 // --- Real recordings ------------------------------------------------------------------------
 // ../shared/recordings: hand-annotated onsets (NAME.impacts.csv: k, t_impact_s, confidence H/M/L).
 // Rule (as /work/scratch/cmp.py of the issue): each annotation takes the nearest detection of
@@ -363,8 +363,9 @@ std::vector<Annotation> ReadAnnotations(const std::string& path) {
 }
 
 void RealRecordingsBlock(const std::string& dir) {
-  std::printf("\n## Real recordings (%s; rule: see RealRecordingsBlock in tools/bench_detect.cpp)\n\n",
-              dir.c_str());
+  std::printf(
+      "\n## Real recordings (%s; rule: see RealRecordingsBlock in tools/bench_detect.cpp)\n\n",
+      dir.c_str());
   std::printf(
       "| file | channel | sequences | main | H found | M found | L found | extra inside | before "
       "| after | removed (codes) | start invariance: agree / matched, worst disagreement |\n"
@@ -396,7 +397,8 @@ void RealRecordingsBlock(const std::string& dir) {
       ++total[a.confidence];
       std::size_t best = imps.size();
       for (std::size_t j = 0; j < imps.size(); ++j)
-        if (best == imps.size() || std::fabs(imps[j].time_s - a.t) < std::fabs(imps[best].time_s - a.t))
+        if (best == imps.size() ||
+            std::fabs(imps[j].time_s - a.t) < std::fabs(imps[best].time_s - a.t))
           best = j;
       if (best < imps.size() && std::fabs(imps[best].time_s - a.t) < 0.005) {
         ++found[a.confidence];
@@ -407,9 +409,12 @@ void RealRecordingsBlock(const std::string& dir) {
     const double lo = ann.front().t - 0.005, hi = ann.back().t + 0.005;
     int extra = 0, before = 0, after = 0;
     for (std::size_t j = 0; j < imps.size(); ++j) {
-      if (imps[j].time_s < lo) ++before;
-      else if (imps[j].time_s > hi) ++after;
-      else if (!matched[j]) ++extra;
+      if (imps[j].time_s < lo)
+        ++before;
+      else if (imps[j].time_s > hi)
+        ++after;
+      else if (!matched[j])
+        ++extra;
     }
     std::map<std::string, int> removed;
     for (const Sequence& q : r.sequences)
@@ -418,7 +423,8 @@ void RealRecordingsBlock(const std::string& dir) {
       if (wn.code == "phantom_removed" && wn.message.find("impacts removed") != std::string::npos)
         ++removed["phantom_sequence"];
     std::string rem;
-    for (const auto& [code, n] : removed) rem += (rem.empty() ? "" : ", ") + std::to_string(n) + " " + code;
+    for (const auto& [code, n] : removed)
+      rem += (rem.empty() ? "" : ", ") + std::to_string(n) + " " + code;
     // Start invariance.
     Audio cut = audio;
     const double rate = audio.info.sample_rate_hz;
@@ -435,82 +441,33 @@ void RealRecordingsBlock(const std::string& dir) {
           const Impact* b = nullptr;
           for (const Sequence& qb : rc.sequences)
             for (const Impact& i : qb.impacts)
-              if (!b || std::fabs(i.time_s + shift - a.time_s) < std::fabs(b->time_s + shift - a.time_s)) b = &i;
+              if (!b ||
+                  std::fabs(i.time_s + shift - a.time_s) < std::fabs(b->time_s + shift - a.time_s))
+                b = &i;
           if (!b || std::fabs(b->time_s + shift - a.time_s) > 0.005) continue;
           ++compared;
           const double d = std::fabs(b->time_s + shift - a.time_s);
-          if (d <= std::max(3.0 * std::max(a.sigma_s, b->sigma_s), 2e-6)) ++agree;
-          else worst = std::max(worst, d);
+          if (d <= std::max(3.0 * std::max(a.sigma_s, b->sigma_s), 2e-6))
+            ++agree;
+          else
+            worst = std::max(worst, d);
         }
     } catch (const Error&) {
     }
     auto frac = [&](char c) { return std::to_string(found[c]) + "/" + std::to_string(total[c]); };
-    std::printf("| %s | %s | %zu | %zu | %s | %s | %s | %d | %d | %d | %s | %d / %d cut %.3f s, worst %s |\n",
-                w.filename().c_str(), r.channel >= 0 ? std::to_string(r.channel).c_str() : "mix",
-                r.sequences.size(), imps.size(), frac('H').c_str(), frac('M').c_str(),
-                frac('L').c_str(), extra, before, after, rem.empty() ? "-" : rem.c_str(), agree,
-                compared, static_cast<double>(k) / rate,
-                worst > 0 ? (F("%.1f", worst * 1e6) + " µs").c_str() : "-");
+    std::printf(
+        "| %s | %s | %zu | %zu | %s | %s | %s | %d | %d | %d | %s | %d / %d cut %.3f s, worst %s "
+        "|\n",
+        w.filename().c_str(), r.channel >= 0 ? std::to_string(r.channel).c_str() : "mix",
+        r.sequences.size(), imps.size(), frac('H').c_str(), frac('M').c_str(), frac('L').c_str(),
+        extra, before, after, rem.empty() ? "-" : rem.c_str(), agree, compared,
+        static_cast<double>(k) / rate, worst > 0 ? (F("%.1f", worst * 1e6) + " µs").c_str() : "-");
   }
 }
-}  // namespace
-
-int main(int argc, char** argv) {
-  int seeds = 5;
-  bool use_aubio = true;
-  bool quick = false, real_only = false;
-  std::string keep, dump, recordings = "../shared/recordings";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--seeds" && i + 1 < argc) {
-      seeds = std::atoi(argv[++i]);
-    } else if (a == "--no-aubio") {
-      use_aubio = false;
-    } else if (a == "--keep" && i + 1 < argc) {
-      keep = argv[++i];
-    } else if (a == "--quick") {
-      quick = true;
-      use_aubio = false;
-    } else if (a == "--dump" && i + 1 < argc) {
-      dump = argv[++i];
-    } else if (a == "--recordings" && i + 1 < argc) {
-      recordings = argv[++i];
-    } else if (a == "--real-only") {
-      real_only = true;
-    } else {
-      std::fprintf(stderr, "usage: bench_detect [--seeds N] [--no-aubio] [--quick] [--keep DIR] [--dump CSV] [--recordings DIR] [--real-only]\n");
-      return 2;
-    }
-  }
-  if (seeds < 1 || seeds > 50) {
-    std::fprintf(stderr, "bench_detect: --seeds must be 1..50\n");
-    return 2;
-  }
-  if (real_only) {
-    RealRecordingsBlock(recordings);
-    return 0;
-  }
-  const bool aubio = use_aubio && HaveAubio();
-  if (use_aubio && !aubio) std::fprintf(stderr, "bench_detect: aubioonset not found; skipping\n");
-  fs::path dir = keep.empty()
-                     ? fs::temp_directory_path() / ("bench_detect_" + std::to_string(::getpid()))
-                     : fs::path(keep);
-  fs::create_directories(dir);
-  if (!dump.empty()) {
-    std::FILE* f = std::fopen(dump.c_str(), "w");
-    if (!f) {
-      std::fprintf(stderr, "bench_detect: cannot write %s\n", dump.c_str());
-      return 2;
-    }
-    std::fputs("preset,seed,sequence,k,err_s,sigma_s,by_template,ncc,sigma_noise,sigma_mismatch,"
-               "sigma_ambiguity,level_ratio,attack_s,noise_rms,amplitude,snr_db,eligible,rate_hz\n",
-               f);
-    std::fclose(f);
-  }
-  const std::string& dump_file = dump;
-
-  const std::vector<std::string> presets = {"steel-copper", "glass-glass", "pingpong-wood",
-                                            "rubber-wood",  "phone-16k",   "two-drops"};
+// Renders every preset with `seeds` seeds as 24-bit WAV into dir and reads them back (the path a
+// user's file takes); with keep, the truth JSON is written beside each.
+std::vector<Corpus> RenderCorpus(const std::vector<std::string>& presets, int seeds,
+                                 const fs::path& dir, bool keep) {
   std::vector<Corpus> corpus;
   std::fprintf(stderr, "rendering %zu files...\n", presets.size() * seeds);
   for (const std::string& p : presets)
@@ -525,7 +482,7 @@ int main(int argc, char** argv) {
       WriteAudio(c.path, res.recording.channels, res.recording.sample_rate_hz,
                  AudioWriteOptions{"PCM_24"});
       c.audio = ReadAudio(c.path);
-      if (!keep.empty()) {
+      if (keep) {
         std::FILE* tf = std::fopen((c.path + ".truth.json").c_str(), "w");
         if (tf) {
           std::fputs(TruthJson(spec, res).dump(1).c_str(), tf);
@@ -536,56 +493,12 @@ int main(int argc, char** argv) {
         c.truth_per_channel.push_back(TruthFor(spec, res.recording, static_cast<int>(ch)));
       corpus.push_back(std::move(c));
     }
+  return corpus;
+}
 
-  // 1. Accuracy per preset, bouncecal vs aubio.
-  const std::vector<std::pair<std::string, bool>> aubio_runs = {
-      {"hfc", false}, {"hfc", true}, {"specflux", false}, {"specflux", true}};
-  std::map<std::string, Metrics> bc, au[4];
-  double bc_time = 0, au_time = 0, audio_total = 0;
-  std::vector<double> au_ratio;
-  for (Corpus& c : corpus) {
-    const RunOut r = RunBouncecal(c.audio, DetectOptions{}, 3);
-    Metrics m = Score(c.truth_per_channel[static_cast<std::size_t>(r.channel)], r.t, r.sigma);
-    m.time_s = r.time_s;
-    m.audio_s = c.audio.info.duration_s();
-    bc[c.preset].Add(m);
-    if (!dump_file.empty()) DumpTiming(dump_file, c, r);
-    bc_time += r.time_s;
-    audio_total += m.audio_s;
-    if (aubio) {
-      double file_au = 0;
-      for (std::size_t k = 0; k < aubio_runs.size(); ++k) {
-        const RunOut ra = RunAubio(c.path, aubio_runs[k].first, aubio_runs[k].second);
-        Metrics ma = Score(c.truth_per_channel[0], ra.t, {});
-        ma.time_s = ra.time_s;
-        ma.audio_s = m.audio_s;
-        au[k][c.preset].Add(ma);
-        if (k == 0) file_au = ra.time_s;
-      }
-      au_time += file_au;
-      au_ratio.push_back(file_au / r.time_s);
-    }
-  }
-  std::printf(
-      "## Detection accuracy (%d seeds per preset; rule: see the header of "
-      "tools/bench_detect.cpp)\n\n",
-      seeds);
-  std::printf(
-      "| preset | detector | eligible | recall | precision | interval err median (µs) | "
-      "p95 (µs) | e RMS err | e RMS err, dt >= 50 ms |\n|---|---|---|---|---|---|---|---|---|\n");
-  Metrics all_bc;
-  for (const std::string& p : presets) {
-    PrintAccuracyRow(p, "bouncecal", bc[p]);
-    all_bc.Add(bc[p]);
-    if (aubio)
-      for (std::size_t k = 0; k < aubio_runs.size(); ++k)
-        PrintAccuracyRow(
-            p,
-            "aubio " + aubio_runs[k].first + (aubio_runs[k].second ? " -B512 -H64" : " (default)"),
-            au[k][p]);
-  }
-  PrintAccuracyRow("all", "bouncecal", all_bc);
-
+// Table 2: RMS(err/sigma) per preset and the level bias of the errors.
+void PrintCalibrationTable(const std::vector<std::string>& presets,
+                           std::map<std::string, Metrics>& bc) {
   // 2. Timing calibration and level bias.
   std::printf("\n## Timing uncertainty calibration and level bias (bouncecal)\n\n");
   std::printf(
@@ -616,28 +529,10 @@ int main(int argc, char** argv) {
                 F("%.1f", Quantile(abs_e, 0.5)).c_str(), F("%+.1f", 1e6 * loud / nl).c_str(),
                 F("%+.1f", 1e6 * quiet / nq).c_str(), F("%.1f", 20 * (qa / nq - la / nl)).c_str());
   }
+}
 
-  RealRecordingsBlock(recordings);
-
-  // 3. Speed.
-  std::printf("\n## Speed (one thread)\n\n");
-  std::printf("| what | value |\n|---|---|\n");
-  std::printf("| audio in corpus | %.1f s in %zu files |\n", audio_total, corpus.size());
-  std::printf("| bouncecal DetectImpacts total | %.1f ms |\n", bc_time * 1e3);
-  std::printf("| bouncecal × real time | %.0f× |\n", audio_total / bc_time);
-  for (const std::string& p : presets)
-    std::printf("| × real time, %s | %.0f× |\n", p.c_str(), bc[p].audio_s / bc[p].time_s);
-  if (aubio) {
-    std::printf("| aubioonset hfc (default hop), process CPU time total | %.1f ms |\n",
-                au_time * 1e3);
-    std::printf("| aubioonset time / bouncecal time (median over files) | %.2f |\n",
-                Quantile(au_ratio, 0.5));
-  }
-
-  if (quick) {
-    if (keep.empty()) fs::remove_all(dir);
-    return 0;
-  }
+// Table 4: accuracy vs cost of the detection settings (first seed of every preset).
+void SettingsTable(const std::vector<Corpus>& corpus) {
   // 4. Accuracy vs cost of the detection settings (first seed of every preset).
   std::printf("\n## Accuracy vs cost of detection settings (1 seed per preset)\n\n");
   std::printf(
@@ -680,6 +575,143 @@ int main(int argc, char** argv) {
         F("%.1f", Quantile(abs_err, 0.5)).c_str(), F("%.1f", Quantile(abs_err, 0.95)).c_str(),
         tot.audio_s / tot.time_s);
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int seeds = 5;
+  bool use_aubio = true;
+  bool quick = false, real_only = false;
+  std::string keep, dump, recordings = "../shared/recordings";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--seeds" && i + 1 < argc) {
+      seeds = std::atoi(argv[++i]);
+    } else if (a == "--no-aubio") {
+      use_aubio = false;
+    } else if (a == "--keep" && i + 1 < argc) {
+      keep = argv[++i];
+    } else if (a == "--quick") {
+      quick = true;
+      use_aubio = false;
+    } else if (a == "--dump" && i + 1 < argc) {
+      dump = argv[++i];
+    } else if (a == "--recordings" && i + 1 < argc) {
+      recordings = argv[++i];
+    } else if (a == "--real-only") {
+      real_only = true;
+    } else {
+      std::fprintf(stderr,
+                   "usage: bench_detect [--seeds N] [--no-aubio] [--quick] [--keep DIR] [--dump "
+                   "CSV] [--recordings DIR] [--real-only]\n");
+      return 2;
+    }
+  }
+  if (seeds < 1 || seeds > 50) {
+    std::fprintf(stderr, "bench_detect: --seeds must be 1..50\n");
+    return 2;
+  }
+  if (real_only) {
+    RealRecordingsBlock(recordings);
+    return 0;
+  }
+  const bool aubio = use_aubio && HaveAubio();
+  if (use_aubio && !aubio) std::fprintf(stderr, "bench_detect: aubioonset not found; skipping\n");
+  fs::path dir = keep.empty()
+                     ? fs::temp_directory_path() / ("bench_detect_" + std::to_string(::getpid()))
+                     : fs::path(keep);
+  fs::create_directories(dir);
+  if (!dump.empty()) {
+    std::FILE* f = std::fopen(dump.c_str(), "w");
+    if (!f) {
+      std::fprintf(stderr, "bench_detect: cannot write %s\n", dump.c_str());
+      return 2;
+    }
+    std::fputs(
+        "preset,seed,sequence,k,err_s,sigma_s,by_template,ncc,sigma_noise,sigma_shape,"
+        "sigma_ambiguity,level_ratio,noise_rms,amplitude,snr_db,eligible,rate_hz\n",
+        f);
+    std::fclose(f);
+  }
+  const std::string& dump_file = dump;
+
+  const std::vector<std::string> presets = {"steel-copper", "glass-glass", "pingpong-wood",
+                                            "rubber-wood",  "phone-16k",   "two-drops"};
+  const std::vector<Corpus> corpus = RenderCorpus(presets, seeds, dir, !keep.empty());
+
+  // 1. Accuracy per preset, bouncecal vs aubio.
+  const std::vector<std::pair<std::string, bool>> aubio_runs = {
+      {"hfc", false}, {"hfc", true}, {"specflux", false}, {"specflux", true}};
+  std::map<std::string, Metrics> bc, au[4];
+  double bc_time = 0, au_time = 0, audio_total = 0;
+  std::vector<double> au_ratio;
+  for (const Corpus& c : corpus) {
+    const RunOut r = RunBouncecal(c.audio, DetectOptions{}, 3);
+    Metrics m = Score(c.truth_per_channel[static_cast<std::size_t>(r.channel)], r.t, r.sigma);
+    m.time_s = r.time_s;
+    m.audio_s = c.audio.info.duration_s();
+    bc[c.preset].Add(m);
+    if (!dump_file.empty()) DumpTiming(dump_file, c, r);
+    bc_time += r.time_s;
+    audio_total += m.audio_s;
+    if (aubio) {
+      double file_au = 0;
+      for (std::size_t k = 0; k < aubio_runs.size(); ++k) {
+        const RunOut ra = RunAubio(c.path, aubio_runs[k].first, aubio_runs[k].second);
+        Metrics ma = Score(c.truth_per_channel[0], ra.t, {});
+        ma.time_s = ra.time_s;
+        ma.audio_s = m.audio_s;
+        au[k][c.preset].Add(ma);
+        if (k == 0) file_au = ra.time_s;
+      }
+      au_time += file_au;
+      au_ratio.push_back(file_au / r.time_s);
+    }
+  }
+  std::printf(
+      "## Detection accuracy (%d seeds per preset; rule: see the header of "
+      "tools/bench_detect.cpp)\n\n",
+      seeds);
+  std::printf(
+      "| preset | detector | eligible | recall | precision | interval err median (µs) | "
+      "p95 (µs) | e RMS err | e RMS err, dt >= 50 ms |\n|---|---|---|---|---|---|---|---|---|\n");
+  Metrics all_bc;
+  for (const std::string& p : presets) {
+    PrintAccuracyRow(p, "bouncecal", bc[p]);
+    all_bc.Add(bc[p]);
+    if (aubio)
+      for (std::size_t k = 0; k < aubio_runs.size(); ++k)
+        PrintAccuracyRow(
+            p,
+            "aubio " + aubio_runs[k].first + (aubio_runs[k].second ? " -B512 -H64" : " (default)"),
+            au[k][p]);
+  }
+  PrintAccuracyRow("all", "bouncecal", all_bc);
+
+  PrintCalibrationTable(presets, bc);
+  RealRecordingsBlock(recordings);
+
+  // 3. Speed.
+  std::printf("\n## Speed (one thread)\n\n");
+  std::printf("| what | value |\n|---|---|\n");
+  std::printf("| audio in corpus | %.1f s in %zu files |\n", audio_total, corpus.size());
+  std::printf("| bouncecal DetectImpacts total | %.1f ms |\n", bc_time * 1e3);
+  std::printf("| bouncecal × real time | %.0f× |\n", audio_total / bc_time);
+  for (const std::string& p : presets)
+    std::printf("| × real time, %s | %.0f× |\n", p.c_str(), bc[p].audio_s / bc[p].time_s);
+  if (aubio) {
+    std::printf("| aubioonset hfc (default hop), process CPU time total | %.1f ms |\n",
+                au_time * 1e3);
+    std::printf("| aubioonset time / bouncecal time (median over files) | %.2f |\n",
+                Quantile(au_ratio, 0.5));
+  }
+
+  if (quick) {
+    if (keep.empty()) fs::remove_all(dir);
+    return 0;
+  }
+  SettingsTable(corpus);
   if (keep.empty()) fs::remove_all(dir);
   return 0;
 }

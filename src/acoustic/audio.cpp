@@ -227,8 +227,9 @@ Audio ReadAudio(const std::string& path) {
     } catch (const Error& e) {
       std::string ff_why = e.what();
       if (ff_why.rfind(path + ": ", 0) == 0) ff_why = ff_why.substr(path.size() + 2);
-      throw Error(ErrorCode::kNotAudio, path + ": not an audio file libsndfile or FFmpeg can read "
-                                               "(libsndfile: " +
+      throw Error(ErrorCode::kNotAudio, path +
+                                            ": not an audio file libsndfile or FFmpeg can read "
+                                            "(libsndfile: " +
                                             sf_why + "; FFmpeg: " + ff_why + ")");
     }
     CheckSamples(&decoded);

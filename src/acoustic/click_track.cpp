@@ -15,7 +15,8 @@ bool ClickTrackOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(click_s > 0.0) || click_s > 1.0)
-    return fail("ClickTrackOptions::click_s = " + std::to_string(click_s) + ": must be in (0, 1] s");
+    return fail("ClickTrackOptions::click_s = " + std::to_string(click_s) +
+                ": must be in (0, 1] s");
   if (!(frequency_hz > 0.0) || !std::isfinite(frequency_hz))
     return fail("ClickTrackOptions::frequency_hz must be a finite number > 0");
   if (!(level > 0.0) || level > 1.0)

@@ -3,8 +3,8 @@
 #include "bouncecal/acoustic/detect.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 
 #include "bouncecal/acoustic/onsets.hpp"
@@ -122,7 +122,9 @@ void ExtendByTemplate(const OnsetResult& onsets, const std::vector<float>& x, do
 // used and why (the scores of all are in DetectionResult::channel_scores).
 void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
   if (r.channel_scores.size() < 2) return;
-  auto name = [](int c) { return c >= 0 ? "channel " + std::to_string(c) : std::string("the mix"); };
+  auto name = [](int c) {
+    return c >= 0 ? "channel " + std::to_string(c) : std::string("the mix");
+  };
   const ChannelScore* used = nullptr;
   for (const ChannelScore& c : r.channel_scores)
     if (c.channel == r.channel) used = &c;
@@ -139,9 +141,10 @@ void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
   }
   if (!disagree) return;
   out->push_back({"channel_choice",
-                  "the channels disagree; " + name(r.channel) + " was used: its main sequence scores " +
-                      Fmt("%.1f", used->score) + " (" + std::to_string(used->impacts) +
-                      " impacts from " + Fmt("%.4f", used->first_impact_s) + " s), " + others +
+                  "the channels disagree; " + name(r.channel) +
+                      " was used: its main sequence scores " + Fmt("%.1f", used->score) + " (" +
+                      std::to_string(used->impacts) + " impacts from " +
+                      Fmt("%.4f", used->first_impact_s) + " s), " + others +
                       " (score = sum of the members' tracker weights)",
                   -1});
 }
@@ -151,13 +154,12 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
   for (std::size_t s = 0; s < seqs.size(); ++s) {
     const Sequence& q = seqs[s];
     for (int k : q.missed_after)
-      out->push_back(
-          {"missed_impact",
-           "sequence " + std::to_string(s) + ": an impact seems missing after impact " +
-               std::to_string(k) +
-               " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
-               " s); its interval is about two expected ones",
-           k});
+      out->push_back({"missed_impact",
+                      "sequence " + std::to_string(s) + ": an impact seems missing after impact " +
+                          std::to_string(k) +
+                          " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
+                          " s); its interval is about two expected ones",
+                      k});
     for (int k : q.irregular_after) {
       const auto& im = q.impacts;
       const std::size_t j = static_cast<std::size_t>(k);
@@ -165,8 +167,8 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
       const double d0 = j > 0 ? im[j].time_s - im[j - 1].time_s : 0.0;
       out->push_back({"irregular_interval",
                       "sequence " + std::to_string(s) + ": the interval after impact " +
-                          std::to_string(k) + " (t = " + Fmt("%.4f", im[j].time_s) + " s: " +
-                          Fmt("%.4f", d) + " s" +
+                          std::to_string(k) + " (t = " + Fmt("%.4f", im[j].time_s) +
+                          " s: " + Fmt("%.4f", d) + " s" +
                           (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
                           ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
                           "sequence continues through it",
@@ -213,7 +215,8 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   const OnsetResult onsets = detector.Detect(x);
   out.hop_samples = detector.hop_samples();
   out.candidates = onsets.onsets;
-  for (Impact& imp : out.candidates) imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
+  for (Impact& imp : out.candidates)
+    imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
 
   TrackOptions to;
   to.min_interval_s = options.min_interval_s;
@@ -248,7 +251,8 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
       why += "the sequences they formed are not a bouncing ball: " + out.warnings.back().message;
     out.failure = why;
   } else {
-    out.score = SequenceScore(out.sequences[static_cast<std::size_t>(LongestSequence(out.sequences))]);
+    out.score =
+        SequenceScore(out.sequences[static_cast<std::size_t>(LongestSequence(out.sequences))]);
   }
   return out;
 }
@@ -263,8 +267,8 @@ std::vector<float> SignalOf(const Audio& audio, int channel, std::size_t i0, std
   *clip_peak = 0.0;
   for (const ClippingReport& c : audio.clipping)
     if (c.clipped() && (channel < 0 || c.channel == channel))
-      *clip_peak = channel < 0 ? 0.999 * c.peak / static_cast<double>(audio.channels.size())
-                               : c.peak;
+      *clip_peak =
+          channel < 0 ? 0.999 * c.peak / static_cast<double>(audio.channels.size()) : c.peak;
   return std::vector<float>(x.begin() + static_cast<std::ptrdiff_t>(i0),
                             x.begin() + static_cast<std::ptrdiff_t>(i1));
 }
@@ -297,12 +301,14 @@ bool DetectOptions::IsValid(std::string* error) const {
   if (channel.kind == ChannelSelection::Kind::kIndex && channel.index < 0)
     return fail("DetectOptions::channel.index must be >= 0");
   if (!(start_s >= 0.0) || !std::isfinite(start_s))
-    return fail("DetectOptions::start_s = " + Fmt("%g", start_s) + ": must be a finite time >= 0 s");
+    return fail("DetectOptions::start_s = " + Fmt("%g", start_s) +
+                ": must be a finite time >= 0 s");
   if (end_s && (!std::isfinite(*end_s) || !(*end_s > start_s)))
-    return fail("DetectOptions::end_s = " + Fmt("%g", *end_s) + ": must be a finite time after start_s = " +
-                Fmt("%g", start_s) + " s");
+    return fail("DetectOptions::end_s = " + Fmt("%g", *end_s) +
+                ": must be a finite time after start_s = " + Fmt("%g", start_s) + " s");
   if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
-    return fail("DetectOptions::min_snr_db = " + Fmt("%g", min_snr_db) + ": must be in [-120, 120] dB");
+    return fail("DetectOptions::min_snr_db = " + Fmt("%g", min_snr_db) +
+                ": must be in [-120, 120] dB");
   return true;
 }
 
@@ -328,9 +334,9 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
                                            " starts after the recording ends (" +
                                            Fmt("%.3f", duration_s) + " s)");
   const std::size_t i0 = static_cast<std::size_t>(std::ceil(options.start_s * rate));
-  const std::size_t i1 = options.end_s
-                             ? std::min(frames, static_cast<std::size_t>(std::ceil(*options.end_s * rate)))
-                             : frames;
+  const std::size_t i1 =
+      options.end_s ? std::min(frames, static_cast<std::size_t>(std::ceil(*options.end_s * rate)))
+                    : frames;
   res.start_s = static_cast<double>(i0) / rate;
   res.end_s = static_cast<double>(i1) / rate;
   const double shift_s = res.start_s;
@@ -400,9 +406,9 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
     throw Error(ErrorCode::kSilence, path + ": recording" + (windowed ? " window " + window : "") +
                                          " is silent (peak |x| at or below one 16-bit step)");
   if (best < 0 || chosen.sequences.empty())
-    throw Error(ErrorCode::kNoBounces,
-                path + ": no bounce sequence found" + (windowed ? " in the window " + window : "") +
-                    " (" + failures + ")");
+    throw Error(ErrorCode::kNoBounces, path + ": no bounce sequence found" +
+                                           (windowed ? " in the window " + window : "") + " (" +
+                                           failures + ")");
   res.channel = choices[static_cast<std::size_t>(best)];
   if (res.channel_scores.size() == 1) res.channel_scores.clear();  // nothing was chosen
 
@@ -458,8 +464,8 @@ SequenceChoice ParseSequenceChoice(const std::string& text) {
     c.index = std::stoi(text);
     return c;
   }
-  throw Error(ErrorCode::kUsage, "sequence choice '" + text +
-                                     "': expected main, all or a 0-based sequence index");
+  throw Error(ErrorCode::kUsage,
+              "sequence choice '" + text + "': expected main, all or a 0-based sequence index");
 }
 
 std::vector<int> ChooseSequences(const std::vector<Sequence>& sequences,

@@ -56,9 +56,11 @@ struct Sink {
 void Append(Sink* s, const AVFrame* frame) {
   const int nch = static_cast<int>(s->channels->size());
   const int cap = swr_get_out_samples(s->swr, frame->nb_samples);
-  s->buf.assign(static_cast<std::size_t>(nch), std::vector<float>(static_cast<std::size_t>(std::max(cap, 1))));
+  s->buf.assign(static_cast<std::size_t>(nch),
+                std::vector<float>(static_cast<std::size_t>(std::max(cap, 1))));
   s->planes.resize(static_cast<std::size_t>(nch));
-  for (int c = 0; c < nch; ++c) s->planes[static_cast<std::size_t>(c)] = s->buf[static_cast<std::size_t>(c)].data();
+  for (int c = 0; c < nch; ++c)
+    s->planes[static_cast<std::size_t>(c)] = s->buf[static_cast<std::size_t>(c)].data();
   const int got = swr_convert(s->swr, reinterpret_cast<uint8_t**>(s->planes.data()), cap,
                               const_cast<const uint8_t**>(frame->extended_data), frame->nb_samples);
   if (got <= 0) return;
@@ -101,8 +103,8 @@ Audio ReadAudioFfmpeg(const std::string& path) {
                           dec->sample_fmt, rate, 0, nullptr) < 0 ||
       swr_init(swr_raw) < 0) {
     swr_free(&swr_raw);
-    throw Error(ErrorCode::kNotAudio, path + ": cannot convert " +
-                                          av_get_sample_fmt_name(dec->sample_fmt) + " samples");
+    throw Error(ErrorCode::kNotAudio,
+                path + ": cannot convert " + av_get_sample_fmt_name(dec->sample_fmt) + " samples");
   }
   std::unique_ptr<SwrContext, SwrFree> swr(swr_raw);
 
@@ -136,9 +138,9 @@ Audio ReadAudioFfmpeg(const std::string& path) {
     throw Error(ErrorCode::kNotAudio, path + ": FFmpeg decoded no audio frames" +
                                           std::string(corrupt ? " (damaged or truncated)" : ""));
   if (corrupt)
-    throw Error(ErrorCode::kNotAudio,
-                path + ": truncated or damaged (FFmpeg stopped after " +
-                    std::to_string(a.channels[0].size()) + " decoded frames)");
+    throw Error(ErrorCode::kNotAudio, path + ": truncated or damaged (FFmpeg stopped after " +
+                                          std::to_string(a.channels[0].size()) +
+                                          " decoded frames)");
 
   a.info.path = path;
   a.info.sample_rate_hz = rate;

@@ -81,8 +81,9 @@ std::vector<RawTime> FromDetectJson(const std::string& path, const nlohmann::jso
   const nlohmann::json* d = &doc;
   if (doc.is_array()) {
     if (doc.size() != 1)
-      Bad(path, "", "holds " + std::to_string(doc.size()) +
-                        " recordings' detections; give one recording's object");
+      Bad(path, "",
+          "holds " + std::to_string(doc.size()) +
+              " recordings' detections; give one recording's object");
     d = &doc[0];
   }
   if (!d->is_object() || !d->contains("sequences") || !(*d)["sequences"].is_array())
@@ -125,9 +126,9 @@ std::vector<RawTime> FromText(const std::string& path, const std::string& text,
     ++first;
   if (first == lines.size()) Bad(path, "", "no impact times in the file");
   const std::string head = lines[first];
-  const char sep = head.find('\t') != std::string::npos   ? '\t'
+  const char sep = head.find('\t') != std::string::npos  ? '\t'
                    : head.find(';') != std::string::npos ? ';'
-                                                          : ',';
+                                                         : ',';
   const std::vector<std::string> cols = Split(head, sep);
   int t_col = -1, s_col = -1, q_col = -1;
   bool header = false;
@@ -142,8 +143,9 @@ std::vector<RawTime> FromText(const std::string& path, const std::string& text,
       if (n == "sequence") q_col = static_cast<int>(c);
     }
     if (t_col < 0)
-      Bad(path, "1", "no time column in the header '" + Trim(head) +
-                         "' (expected time_s, t_impact_s, t_s, time or \"Time (s)\")");
+      Bad(path, "1",
+          "no time column in the header '" + Trim(head) +
+              "' (expected time_s, t_impact_s, t_s, time or \"Time (s)\")");
     *format = "csv";
   } else {
     t_col = 0;
@@ -155,7 +157,8 @@ std::vector<RawTime> FromText(const std::string& path, const std::string& text,
     if (l.empty() || l[0] == '#') continue;
     const std::vector<std::string> f = Split(lines[i], sep);
     const std::string where = std::to_string(i + 1);
-    if (static_cast<int>(f.size()) <= t_col) Bad(path, where, "no time in column " + std::to_string(t_col + 1));
+    if (static_cast<int>(f.size()) <= t_col)
+      Bad(path, where, "no time in column " + std::to_string(t_col + 1));
     const std::optional<double> t = Number(f[static_cast<std::size_t>(t_col)]);
     if (!t) Bad(path, where, "'" + Trim(f[static_cast<std::size_t>(t_col)]) + "' is not a number");
     RawTime r;
@@ -173,8 +176,8 @@ std::vector<RawTime> FromText(const std::string& path, const std::string& text,
     if (q_col >= 0 && static_cast<int>(f.size()) > q_col) {
       const std::optional<double> q = Number(f[static_cast<std::size_t>(q_col)]);
       if (!q || *q < 0 || *q != std::floor(*q) || *q > 1e6)
-        Bad(path, where, "sequence '" + Trim(f[static_cast<std::size_t>(q_col)]) +
-                             "' is not a 0-based index");
+        Bad(path, where,
+            "sequence '" + Trim(f[static_cast<std::size_t>(q_col)]) + "' is not a 0-based index");
       r.sequence = static_cast<int>(*q);
     }
     out.push_back(r);
@@ -192,8 +195,9 @@ std::vector<Sequence> Validate(const std::string& path, std::vector<RawTime> raw
     if (!std::isfinite(r.t)) Bad(path, r.where, "time " + Fmt("%g", r.t) + " is not finite");
     if (r.t < 0.0) Bad(path, r.where, "time " + Fmt("%g", r.t) + " s is negative");
     if (o.duration_s && r.t > *o.duration_s)
-      Bad(path, r.where, "time " + Fmt("%.6f", r.t) + " s is beyond the recording (" +
-                             Fmt("%.6f", *o.duration_s) + " s long)");
+      Bad(path, r.where,
+          "time " + Fmt("%.6f", r.t) + " s is beyond the recording (" + Fmt("%.6f", *o.duration_s) +
+              " s long)");
     if (r.sigma && (!std::isfinite(*r.sigma) || !(*r.sigma > 0.0)))
       Bad(path, r.where, "sigma_s " + Fmt("%g", *r.sigma) + " must be a finite number > 0");
     auto it = std::find(ids.begin(), ids.end(), r.sequence);
@@ -208,8 +212,9 @@ std::vector<Sequence> Validate(const std::string& path, std::vector<RawTime> raw
       const double prev = q.impacts.back().time_s;
       if (r.t == prev) Bad(path, r.where, "time " + Fmt("%.6f", r.t) + " s is a duplicate");
       if (r.t < prev)
-        Bad(path, r.where, "time " + Fmt("%.6f", r.t) + " s comes after " + Fmt("%.6f", prev) +
-                               " s: times must be sorted");
+        Bad(path, r.where,
+            "time " + Fmt("%.6f", r.t) + " s comes after " + Fmt("%.6f", prev) +
+                " s: times must be sorted");
     }
     Impact im;
     im.time_s = r.t;
@@ -228,9 +233,9 @@ std::vector<Sequence> Validate(const std::string& path, std::vector<RawTime> raw
     }
   for (std::size_t s = 0; s < seqs.size(); ++s)
     if (static_cast<int>(seqs[s].impacts.size()) < o.min_impacts)
-      Bad(path, "", "sequence " + std::to_string(ids[s]) + " has " +
-                        std::to_string(seqs[s].impacts.size()) + " impact(s); a bounce sequence needs " +
-                        std::to_string(o.min_impacts));
+      Bad(path, "",
+          "sequence " + std::to_string(ids[s]) + " has " + std::to_string(seqs[s].impacts.size()) +
+              " impact(s); a bounce sequence needs " + std::to_string(o.min_impacts));
   return seqs;
 }
 

@@ -524,13 +524,16 @@ Impact OnsetDetector::Refine(const std::vector<float>& x, const OnsetResult& res
   Impact imp;
   imp.time_s = onset / rate_hz_;
   imp.sigma_s = std::hypot(sigma / rate_hz_, floor_s);
-  const std::size_t i0 = std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
+  const std::size_t i0 =
+      std::min(n - 1, static_cast<std::size_t>(std::max(0.0, std::floor(onset))));
   const std::size_t pk_end = std::min(n, i0 + static_cast<std::size_t>(0.003 * rate_hz_) + 1);
   double amp = 0.0;
-  for (std::size_t i = i0; i < pk_end; ++i) amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
+  for (std::size_t i = i0; i < pk_end; ++i)
+    amp = std::max(amp, static_cast<double>(std::fabs(x[i])));
   imp.amplitude = amp;
   // SNR: whitened power just after the onset over the power in the 10 ms before it.
-  const std::size_t len_post = std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
+  const std::size_t len_post =
+      std::max<std::size_t>(8, static_cast<std::size_t>(0.0005 * rate_hz_));
   double e_post = 0.0;
   std::size_t c_post = 0;
   for (std::size_t i = i0; i < std::min(n, i0 + len_post); ++i, ++c_post)
@@ -652,8 +655,9 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
   // NCC peak precision ~ sqrt(1 - c^2) / c samples (scaled), plus the floor. (The final timing
   // of sequence members, with its calibrated sigma, is timing.hpp's.)
   const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - best_c * best_c)) / best_c;
-  im->sigma_s = std::hypot(sig_samples / rate_hz_,
-                           std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_));
+  im->sigma_s =
+      std::hypot(sig_samples / rate_hz_,
+                 std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_));
 }
 
 void OnsetDetector::BlindTemplateSearch(const std::vector<float>& x, const TemplateMatch& m,

@@ -38,7 +38,8 @@ void RemoveMembers(Sequence* s, const std::vector<bool>& drop, const std::string
   for (std::size_t k = 0; k < s->impacts.size(); ++k) {
     if (drop[k]) {
       s->removed.push_back({s->impacts[k], code});
-      if (!kept.empty() && k + 1 < s->impacts.size()) missed.push_back(static_cast<int>(kept.size()) - 1);
+      if (!kept.empty() && k + 1 < s->impacts.size())
+        missed.push_back(static_cast<int>(kept.size()) - 1);
       continue;
     }
     new_index[k] = static_cast<int>(kept.size());
@@ -63,9 +64,10 @@ void RemoveMembers(Sequence* s, const std::vector<bool>& drop, const std::string
   s->impacts = std::move(kept);
   s->missed_after = std::move(m2);
   s->irregular_after = std::move(irregular);
-  std::sort(s->removed.begin(), s->removed.end(), [](const RemovedImpact& a, const RemovedImpact& b) {
-    return a.impact.time_s < b.impact.time_s;
-  });
+  std::sort(s->removed.begin(), s->removed.end(),
+            [](const RemovedImpact& a, const RemovedImpact& b) {
+              return a.impact.time_s < b.impact.time_s;
+            });
 }
 
 }  // namespace
@@ -152,8 +154,8 @@ std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions&
     drop[k] = true;
     out.push_back({"low_snr_removed",
                    label + ": the impact at t = " + Fmt("%.4f", i.time_s) + " s was removed: SNR " +
-                       Fmt("%.1f", i.snr_db) + " dB is below min_snr_db = " +
-                       Fmt("%g", o.min_snr_db) + " dB",
+                       Fmt("%.1f", i.snr_db) +
+                       " dB is below min_snr_db = " + Fmt("%g", o.min_snr_db) + " dB",
                    -1});
   }
   if (!out.empty()) RemoveMembers(s, drop, "low_snr_removed");

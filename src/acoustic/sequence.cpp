@@ -17,11 +17,11 @@ constexpr int kKeep = 2;  // extended histories kept per candidate pair
 struct State {
   int i = -1, k = -1;  // last two impacts (candidate indices), i < k
   double score = 0.0;
-  double ratio = kNaN;  // last ratio r = dt / dt_prev (NaN for the first pair)
-  double d_eff = 0.0;   // last single interval (estimated one after a missed impact)
+  double ratio = kNaN;     // last ratio r = dt / dt_prev (NaN for the first pair)
+  double d_eff = 0.0;      // last single interval (estimated one after a missed impact)
   bool missed = false;     // an impact seems missing between i and k
   bool irregular = false;  // the step to k broke the smooth ratio pattern (tolerated once)
-  int back = -1;        // previous state
+  int back = -1;           // previous state
   int len = 2;
 };
 
@@ -42,10 +42,11 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
   if (m < o.min_sequence_impacts) return best_chain;
   std::vector<State> states;
   std::vector<std::vector<int>> ending(static_cast<std::size_t>(m));  // state ids ending at pos
-  std::vector<double> level(static_cast<std::size_t>(m));              // dBFS
+  std::vector<double> level(static_cast<std::size_t>(m));             // dBFS
   for (int p = 0; p < m; ++p)
     level[static_cast<std::size_t>(p)] =
-        20.0 * std::log10(std::max(c[static_cast<std::size_t>(idx[static_cast<std::size_t>(p)])].amplitude, 1e-12));
+        20.0 * std::log10(std::max(
+                   c[static_cast<std::size_t>(idx[static_cast<std::size_t>(p)])].amplitude, 1e-12));
   const double two_sigma2 = 2.0 * o.ratio_sigma * o.ratio_sigma;
   for (int kp = 1; kp < m; ++kp) {
     const double tk = c[static_cast<std::size_t>(idx[static_cast<std::size_t>(kp)])].time_s;
@@ -58,7 +59,8 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
       if (d > o.max_interval_s) break;
       ++fan;
       // An earlier impact is faster, so not much quieter (plausibility.hpp, the level model).
-      if (level[static_cast<std::size_t>(kp)] - level[static_cast<std::size_t>(ip)] > o.max_level_rise_db)
+      if (level[static_cast<std::size_t>(kp)] - level[static_cast<std::size_t>(ip)] >
+          o.max_level_rise_db)
         continue;
       // The fresh start (i, k) and up to kKeep extensions with distinct last ratios: the
       // best-scoring history is not always the one the future can continue.
@@ -100,8 +102,7 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
           s.d_eff = d;
           offer(s);
         } else if (has_trend && p.len >= 4 && !p.irregular && !p.missed &&
-                   r <= o.max_irregular_ratio &&
-                   std::fabs(jump) <= o.max_irregular_log_jump) {
+                   r <= o.max_irregular_ratio && std::fabs(jump) <= o.max_irregular_log_jump) {
           // Spin or an uneven spot: one interval off the pattern, tolerated at a cost; the
           // trend ratio carries on to judge the next step.
           State irr = s;

@@ -20,8 +20,8 @@ constexpr std::size_t kAnchorMembers = 9;
 
 double WindowedSinc(double d) {
   if (std::fabs(d) >= static_cast<double>(kSincHalf)) return 0.0;
-  const double s = std::fabs(d) < 1e-12 ? 1.0
-                                        : std::sin(std::numbers::pi * d) / (std::numbers::pi * d);
+  const double s =
+      std::fabs(d) < 1e-12 ? 1.0 : std::sin(std::numbers::pi * d) / (std::numbers::pi * d);
   return s * (0.5 + 0.5 * std::cos(std::numbers::pi * d / static_cast<double>(kSincHalf)));
 }
 
@@ -75,7 +75,8 @@ LocalMeasures Measure(const Neighbourhood& nb, const std::vector<float>& x, doub
   const long lvl_len = std::max(1L, std::lround(o.level_window_s * rate_hz));
   const long xs = static_cast<long>(x.size());
   for (long i = std::clamp(i0 - 1, 0L, xs); i < std::min(xs, i0 + lvl_len); ++i)
-    m.amplitude = std::max(m.amplitude, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
+    m.amplitude =
+        std::max(m.amplitude, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
   return m;
 }
 
@@ -158,17 +159,16 @@ bool TimingOptions::IsValid(std::string* error) const {
   };
   if (lpc_order < 0 || lpc_order > 256)
     return fail("TimingOptions::lpc_order = " + std::to_string(lpc_order) + ": must be 0..256");
-  for (const auto& [name, v] :
-       {std::pair<const char*, double>{"fit_before_s", fit_before_s},
-        {"fit_after_s", fit_after_s},
-        {"lead_s", lead_s},
-        {"far_search_s", far_search_s},
-        {"noise_guard_s", noise_guard_s},
-        {"ambiguity_gain", ambiguity_gain},
-        {"resolution_samples", resolution_samples},
-        {"resolution_s", resolution_s},
-        {"shape_s_per_neper", shape_s_per_neper},
-        {"noise_gain", noise_gain}})
+  for (const auto& [name, v] : {std::pair<const char*, double>{"fit_before_s", fit_before_s},
+                                {"fit_after_s", fit_after_s},
+                                {"lead_s", lead_s},
+                                {"far_search_s", far_search_s},
+                                {"noise_guard_s", noise_guard_s},
+                                {"ambiguity_gain", ambiguity_gain},
+                                {"resolution_samples", resolution_samples},
+                                {"resolution_s", resolution_s},
+                                {"shape_s_per_neper", shape_s_per_neper},
+                                {"noise_gain", noise_gain}})
     if (!(v >= 0.0) || !std::isfinite(v))
       return fail(std::string("TimingOptions::") + name + " = " + std::to_string(v) +
                   ": must be a finite number >= 0");
@@ -190,8 +190,8 @@ bool TimingOptions::IsValid(std::string* error) const {
 }
 
 std::vector<double> NeighbourhoodPredictor(const std::vector<float>& x,
-                                           const std::vector<long>& anchors, int order,
-                                           long before, long after) {
+                                           const std::vector<long>& anchors, int order, long before,
+                                           long after) {
   if (order <= 0) return {1.0};
   const long n = static_cast<long>(x.size());
   std::vector<double> r(static_cast<std::size_t>(order) + 1, 0.0), rw(r.size());
@@ -202,7 +202,8 @@ std::vector<double> NeighbourhoodPredictor(const std::vector<float>& x,
     for (int lag = 0; lag <= order; ++lag) {
       double acc = 0.0;
       for (long i = lo + lag; i < hi; ++i)
-        acc += static_cast<double>(x[static_cast<std::size_t>(i)]) * x[static_cast<std::size_t>(i - lag)];
+        acc += static_cast<double>(x[static_cast<std::size_t>(i)]) *
+               x[static_cast<std::size_t>(i - lag)];
       rw[static_cast<std::size_t>(lag)] = acc;
     }
     if (!(rw[0] > 0.0)) continue;
@@ -348,8 +349,8 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
   for (long q = -kSincHalf; q <= kSincHalf; ++q)
     c[static_cast<std::size_t>(q + kSincHalf)] = NccAt(nb, t.h, t.hh, lc.lag + q);
   double peak = lc.ncc;
-  const double frac =
-      InterpolatedPeak(c, static_cast<std::size_t>(kSincHalf), &peak) - static_cast<double>(kSincHalf);
+  const double frac = InterpolatedPeak(c, static_cast<std::size_t>(kSincHalf), &peak) -
+                      static_cast<double>(kSincHalf);
   d->ncc = std::clamp(std::max(peak, lc.ncc), -1.0, 1.0);
   d->by_template = true;
   out->onset = is_template ? t.t_ref : t.t_ref + (static_cast<double>(lc.lag - t.start) + frac);
@@ -358,7 +359,8 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
   // p = P(N(0, 2 s_c^2) > c1 - c2), and then the time is off by the lag difference.
   if (!is_template && lc.rival_ncc > -2.0) {
     double yy = 0.0;
-    for (long j = 0; j < g.tl; ++j) yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
+    for (long j = 0; j < g.tl; ++j)
+      yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
     const double s_c =
         std::max(1e-12, ProjectedNoise(nb, t.h, out->onset, rate_hz, o) / std::sqrt(t.hh * yy));
     const double p = 0.5 * std::erfc((d->ncc - lc.rival_ncc) / (2.0 * s_c));
@@ -413,9 +415,9 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   // 1. Predictor from the members' neighbourhoods.
   std::vector<long> anchors(n);
   for (std::size_t k = 0; k < n; ++k) anchors[k] = std::lround(imps[k].time_s * rate_hz);
-  res.predictor = NeighbourhoodPredictor(x, anchors, o.lpc_order,
-                                         std::lround(o.fit_before_s * rate_hz),
-                                         std::lround(o.fit_after_s * rate_hz));
+  res.predictor =
+      NeighbourhoodPredictor(x, anchors, o.lpc_order, std::lround(o.fit_before_s * rate_hz),
+                             std::lround(o.fit_after_s * rate_hz));
   // 2. Local whitening around each member.
   std::vector<Neighbourhood> nb(n);
   for (std::size_t k = 0; k < n; ++k) {
@@ -466,7 +468,8 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   std::vector<double> shifts;
   for (const auto& [neg_ncc, k] : by_ncc) {
     const AicPick p = AicAround(nb[k], std::lround(imps[k].time_s * rate_hz), g);
-    if (p.valid) shifts.push_back(p.index + static_cast<double>(nb[k].begin) - imps[k].time_s * rate_hz);
+    if (p.valid)
+      shifts.push_back(p.index + static_cast<double>(nb[k].begin) - imps[k].time_s * rate_hz);
   }
   if (!shifts.empty()) {
     std::sort(shifts.begin(), shifts.end());

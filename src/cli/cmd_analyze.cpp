@@ -30,8 +30,8 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/fit/kinematics.hpp"
 #include "commands.hpp"
-#include "output.hpp"
 #include "detect_flags.hpp"
+#include "output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -201,8 +201,8 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
   o << file << (loaded.chosen.size() > 1 ? " sequence " + std::to_string(chosen) : std::string())
     << ": " << Fixed(info.sample_rate_hz, 0) << " Hz, " << info.channels << " channel(s), "
     << (det.channel >= 0 ? "channel " + std::to_string(det.channel) : std::string("mix"))
-    << " used; " << seq.impacts.size() << " impacts in the sequence (of "
-    << det.sequences.size() << " sequence(s)), end: " << seq.end_reason << "\n";
+    << " used; " << seq.impacts.size() << " impacts in the sequence (of " << det.sequences.size()
+    << " sequence(s)), end: " << seq.end_reason << "\n";
   o << EffectsLine(scene, an, aopt.use_drop) << "\n\n";
   // "value +- sigma" pairs, "-" where unknown.
   auto pm = [](double v, double sigma, int decimals, int sigma_decimals) {

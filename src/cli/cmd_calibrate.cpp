@@ -267,7 +267,7 @@ void Run(const CalibrateArgs& a) {
   if (all) sf.law.clear();
   const Scene scene = ResolveScene(sf);
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
-  MakeDetectOptions(a.detect);  // flag errors before any work
+  MakeDetectOptions(a.detect);            // flag errors before any work
   const auto inputs = PairInputs(a.files, a.detect);
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});

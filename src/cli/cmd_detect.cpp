@@ -53,9 +53,9 @@ struct DetectArgs {
 };
 
 nlohmann::json ImpactJson(const Impact& i) {
-  return {{"time_s", i.time_s},          {"sigma_s", JsonNumber(i.sigma_s)},
-          {"amplitude", i.amplitude},    {"snr_db", JsonNumber(i.snr_db)},
-          {"score", i.score},            {"clipped", i.clipped}};
+  return {{"time_s", i.time_s},       {"sigma_s", JsonNumber(i.sigma_s)},
+          {"amplitude", i.amplitude}, {"snr_db", JsonNumber(i.snr_db)},
+          {"score", i.score},         {"clipped", i.clipped}};
 }
 
 std::string Format(const char* fmt, double a) {
@@ -73,14 +73,15 @@ nlohmann::json ResultJson(const std::string& file, const LoadedRecording& l) {
   j["channel_used"] = r.channel >= 0 ? nlohmann::json(r.channel) : nlohmann::json();
   j["duration_s"] = r.audio.duration_s();
   const double rate = r.audio.sample_rate_hz;
-  j["audio"] = {{"format", r.audio.format},
-                {"codec", r.audio.subtype},
-                {"decoder", r.audio.decoder},
-                {"lossy", r.audio.lossy},
-                {"codec_delay_samples", r.audio.codec_delay_samples},
-                {"codec_delay_s",
-                 JsonNumber(rate > 0 ? static_cast<double>(r.audio.codec_delay_samples) / rate : NAN)},
-                {"codec_delay_trimmed", r.audio.codec_delay_trimmed}};
+  j["audio"] = {
+      {"format", r.audio.format},
+      {"codec", r.audio.subtype},
+      {"decoder", r.audio.decoder},
+      {"lossy", r.audio.lossy},
+      {"codec_delay_samples", r.audio.codec_delay_samples},
+      {"codec_delay_s",
+       JsonNumber(rate > 0 ? static_cast<double>(r.audio.codec_delay_samples) / rate : NAN)},
+      {"codec_delay_trimmed", r.audio.codec_delay_trimmed}};
   j["window"] = {{"start_s", r.start_s}, {"end_s", r.end_s}};
   j["source"] = l.impacts_file.empty() ? "detection" : "impacts_file";
   j["channel_scores"] = nlohmann::json::array();
@@ -150,8 +151,8 @@ void PrintTable(const std::string& file, const LoadedRecording& l) {
   std::printf("%s: %.0f Hz, %d channel(s), %.3f s, %s\n", file.c_str(), r.audio.sample_rate_hz,
               r.audio.channels, r.audio.duration_s(),
               !l.impacts_file.empty() ? ("times from " + l.impacts_file).c_str()
-              : r.channel >= 0        ? ("listening to channel " + std::to_string(r.channel)).c_str()
-                                      : "listening to the mix");
+              : r.channel >= 0 ? ("listening to channel " + std::to_string(r.channel)).c_str()
+                               : "listening to the mix");
   if (r.audio.decoder == "ffmpeg")
     std::printf("decoded by FFmpeg: %s in %s%s\n", r.audio.subtype.c_str(), r.audio.format.c_str(),
                 r.audio.codec_delay_samples > 0

@@ -70,7 +70,8 @@ std::vector<std::pair<std::string, std::string>> PairInputs(
   } else if (recordings.empty()) {
     for (const auto& i : f.impacts) out.push_back({"", i});
   } else if (f.impacts.size() == recordings.size()) {
-    for (std::size_t k = 0; k < recordings.size(); ++k) out.push_back({recordings[k], f.impacts[k]});
+    for (std::size_t k = 0; k < recordings.size(); ++k)
+      out.push_back({recordings[k], f.impacts[k]});
   } else {
     throw Error(ErrorCode::kUsage, "--impacts given " + std::to_string(f.impacts.size()) +
                                        " time(s) for " + std::to_string(recordings.size()) +
@@ -113,8 +114,9 @@ LoadedRecording LoadRecording(const std::string& recording, const Audio* audio,
         }
       }
       if (kept.empty())
-        throw Error(ErrorCode::kNoBounces, impacts_file + ": no sequence of 3 or more impacts in "
-                                                          "the window [" +
+        throw Error(ErrorCode::kNoBounces, impacts_file +
+                                               ": no sequence of 3 or more impacts in "
+                                               "the window [" +
                                                Num(lo) + ", " +
                                                (opt.end_s ? Num(*opt.end_s) : std::string("end")) +
                                                ") s");

@@ -40,10 +40,10 @@ DetectOptions MakeDetectOptions(const DetectFlags& flags);
 
 // One recording's sequences: detected, or read from its --impacts file.
 struct LoadedRecording {
-  std::string name;            // the recording (or the impacts file when there is none)
-  DetectionResult result;      // sequences (detected or from the file), audio info, warnings
-  std::vector<int> chosen;     // --sequence: indices into result.sequences
-  std::string impacts_file;    // non-empty when the times came from a file
+  std::string name;          // the recording (or the impacts file when there is none)
+  DetectionResult result;    // sequences (detected or from the file), audio info, warnings
+  std::vector<int> chosen;   // --sequence: indices into result.sequences
+  std::string impacts_file;  // non-empty when the times came from a file
 };
 
 // `audio`: the recording already read (or null: read here when needed). Throws Error.

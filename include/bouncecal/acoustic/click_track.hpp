@@ -13,10 +13,10 @@
 namespace bouncecal {
 
 struct ClickTrackOptions {
-  double click_s = 0.004;         // click length: a decaying sine burst
-  double frequency_hz = 2000.0;   // its pitch (clamped below the Nyquist frequency)
-  double level = 0.5;             // its peak, full scale = 1
-  double recording_gain = 0.5;    // the recording is mixed in at this gain (headroom for clicks)
+  double click_s = 0.004;        // click length: a decaying sine burst
+  double frequency_hz = 2000.0;  // its pitch (clamped below the Nyquist frequency)
+  double level = 0.5;            // its peak, full scale = 1
+  double recording_gain = 0.5;   // the recording is mixed in at this gain (headroom for clicks)
   bool IsValid(std::string* error) const;
 };
 

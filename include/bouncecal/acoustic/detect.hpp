@@ -43,8 +43,8 @@ struct RemovedImpact {
 
 struct Sequence {
   std::vector<Impact> impacts;
-  std::vector<int> missed_after;     // k: an impact seems missing between impacts k and k+1
-  std::vector<int> irregular_after;  // k: interval k -> k+1 breaks the smooth ratio pattern
+  std::vector<int> missed_after;       // k: an impact seems missing between impacts k and k+1
+  std::vector<int> irregular_after;    // k: interval k -> k+1 breaks the smooth ratio pattern
   std::vector<RemovedImpact> removed;  // members removed as implausible, in time order
   std::string end_reason;              // "resolved_limit", "end_of_file", "gap", ...
 };
@@ -69,19 +69,19 @@ struct DetectOptions {
 
 // How well one channel (or the mix) supports a bounce sequence: the detection ran on it alone.
 struct ChannelScore {
-  int channel = -1;         // -1 = the mix of all channels
-  double score = 0.0;       // sum of the tracker weights of the main sequence's members (0: none)
-  int impacts = 0;          // members of its main sequence
+  int channel = -1;    // -1 = the mix of all channels
+  double score = 0.0;  // sum of the tracker weights of the main sequence's members (0: none)
+  int impacts = 0;     // members of its main sequence
   double first_impact_s = 0.0;
-  std::string failure;      // why nothing was found (empty if a sequence was)
+  std::string failure;  // why nothing was found (empty if a sequence was)
 };
 
 struct DetectionResult {
   AudioInfo audio;
-  int channel = -1;  // channel used, -1 = mix
+  int channel = -1;                          // channel used, -1 = mix
   std::vector<ChannelScore> channel_scores;  // auto on several channels: every candidate signal
   std::vector<ClippingReport> clipping;
-  double start_s = 0.0;             // the analysed window [start_s, end_s)
+  double start_s = 0.0;  // the analysed window [start_s, end_s)
   double end_s = 0.0;
   std::vector<Impact> candidates;   // every onset found, before tracking
   std::vector<Sequence> sequences;  // in time order

@@ -16,9 +16,9 @@
 //
 //   ImpactsFile f = ReadImpactsFile("fixed.json", ImpactsFileOptions{.duration_s = 12.8});
 //
-// Errors: Error(kInputMissing) for a missing/unreadable file; Error(kBadScene, exit 8: a malformed input file) naming the file
-// and line for anything else (no time column, non-numeric, negative, unsorted or duplicate
-// times, times beyond the recording, fewer than min_impacts in a sequence).
+// Errors: Error(kInputMissing) for a missing/unreadable file; Error(kBadScene, exit 8: a malformed
+// input file) naming the file and line for anything else (no time column, non-numeric, negative,
+// unsorted or duplicate times, times beyond the recording, fewer than min_impacts in a sequence).
 #pragma once
 
 #include <optional>

@@ -125,7 +125,7 @@ class OnsetDetector {
  private:
   // The stages of Detect, in order.
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
-  std::vector<double> Novelty(const std::vector<float>& whitened) const;  // 1. flux, dB
+  std::vector<double> Novelty(const std::vector<float>& whitened) const;    // 1. flux, dB
   std::vector<double> Threshold(const std::vector<double>& novelty) const;  // 2. adaptive
   std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
                                  const std::vector<double>& threshold) const;  // 3. frames

@@ -45,9 +45,9 @@ struct PlausibilityOptions {
   // A member whose sigma exceeds this fraction of its shorter interval says nothing about e
   // (sigma_e / e ~ 2 sigma / T = 20 %): removed.
   double max_sigma_fraction = 0.1;
-  double level_tolerance_db = 20.0;            // earlier member vs later members
-  int level_reference_members = 3;             // how many later members set the reference
-  double sequence_level_tolerance_db = 20.0;   // sequence vs the loudest sequence, same speed
+  double level_tolerance_db = 20.0;           // earlier member vs later members
+  int level_reference_members = 3;            // how many later members set the reference
+  double sequence_level_tolerance_db = 20.0;  // sequence vs the loudest sequence, same speed
   // Largest geometric mean of the interval ratios dt_k / dt_(k-1) of a sequence: restitution
   // coefficients of real balls stay below ~0.97 (steel or glass on glass), so the intervals of
   // a bouncing ball shrink by at least a few percent per bounce on average; 0.99 leaves room for

@@ -11,8 +11,9 @@
 // with hard limits r in [min_ratio, max_ratio], |log(r_k / r_{k-1})| <= max_log_ratio_jump,
 // dt >= min_interval_s (not resolvable below). A step whose interval is about the sum of two
 // expected ones (dt ~ dt_prev (e + e^2)) is accepted with a penalty and flagged as a missed
-// impact; a single step off the pattern (irregular bounce) likewise, flagged as irregular. The best chain is taken, then the search repeats on the candidates outside the
-// chains found so far (several drops in one file become separate sequences).
+// impact; a single step off the pattern (irregular bounce) likewise, flagged as irregular. The best
+// chain is taken, then the search repeats on the candidates outside the chains found so far
+// (several drops in one file become separate sequences).
 //
 //   std::vector<Sequence> s = TrackSequences(candidates, duration_s, TrackOptions{});
 //
@@ -29,12 +30,12 @@
 namespace bouncecal {
 
 struct TrackOptions {
-  double min_interval_s = 0.003;      // impacts closer than this are not resolvable
-  double max_interval_s = 3.0;        // longest flight considered (h ~ 11 m)
-  double min_ratio = 0.2;             // smallest plausible dt_k / dt_{k-1}
-  double max_ratio = 1.02;            // largest (timing noise on e ~ 1)
-  double ratio_sigma = 0.03;          // scale of the log-ratio change between bounces
-  double max_log_ratio_jump = 0.2;    // hard limit on |log(r_k / r_{k-1})|
+  double min_interval_s = 0.003;    // impacts closer than this are not resolvable
+  double max_interval_s = 3.0;      // longest flight considered (h ~ 11 m)
+  double min_ratio = 0.2;           // smallest plausible dt_k / dt_{k-1}
+  double max_ratio = 1.02;          // largest (timing noise on e ~ 1)
+  double ratio_sigma = 0.03;        // scale of the log-ratio change between bounces
+  double max_log_ratio_jump = 0.2;  // hard limit on |log(r_k / r_{k-1})|
   // One step may break the pattern (spin, an uneven spot: real balls' e scatters by 0.005-0.05
   // and single intervals jump more), if the chain has 4 impacts with regular steps before it:
   // ratio up to max_irregular_ratio and |log(r_k / trend)| up to max_irregular_log_jump, at a

@@ -72,15 +72,15 @@ struct TimingOptions {
   double far_search_s = 1.5e-3;  // rivals for the ambiguity term: +- this around it
   double aic_pre_s = 0.002;      // AIC window before / after the detection's time
   double aic_post_s = 0.0008;
-  double noise_window_s = 0.02;  // SNR: noise floor from this long before the onset ...
-  double noise_guard_s = 0.001;  // ... ending this long before it
+  double noise_window_s = 0.02;   // SNR: noise floor from this long before the onset ...
+  double noise_guard_s = 0.001;   // ... ending this long before it
   double signal_window_s = 5e-4;  // SNR: signal rms over this long after the onset
   double level_window_s = 0.003;  // Impact::amplitude: peak |x| over this long after the onset
   double min_template_ncc = 0.2;  // below: AIC timing (sigma: the AIC window, uniform)
   // Sigma model constants, calibrated against exact truth on the six synthetic presets x 8 seeds
   // (tools/bench_detect --quick --seeds 8 --dump, a grid search minimising the largest
   // |log RMS(err/sigma)| over the presets): RMS(err/sigma) 0.81-1.18 on every preset.
-  double noise_gain = 0.6;          // the robust projected-noise spread overstates the noise
+  double noise_gain = 0.6;  // the robust projected-noise spread overstates the noise
   double ambiguity_gain = 1.5;
   double shape_s_per_neper = 3e-6;  // s per neper of level difference to the template
   double resolution_samples = 0.0;
@@ -91,19 +91,19 @@ struct TimingOptions {
 
 // How one member was timed (for diagnostics and the benchmark's sigma calibration).
 struct TimingDetail {
-  bool by_template = false;   // false: AIC pick
-  double ncc = 0.0;           // NCC with the template at the chosen lag
-  double sigma_noise = 0.0;   // model parts, samples
+  bool by_template = false;  // false: AIC pick
+  double ncc = 0.0;          // NCC with the template at the chosen lag
+  double sigma_noise = 0.0;  // model parts, samples
   double sigma_resolution = 0.0;
   double sigma_ambiguity = 0.0;
   double sigma_shape = 0.0;
-  double level_ratio = 1.0;   // the member's amplitude relative to the template (fitted scale)
-  double noise_rms = 0.0;     // local whitened noise floor
+  double level_ratio = 1.0;  // the member's amplitude relative to the template (fitted scale)
+  double noise_rms = 0.0;    // local whitened noise floor
 };
 
 struct TimingResult {
-  int template_member = -1;         // index in the sequence of the template impact
-  std::vector<double> predictor;    // a[0..order], a[0] = 1
+  int template_member = -1;          // index in the sequence of the template impact
+  std::vector<double> predictor;     // a[0..order], a[0] = 1
   std::vector<TimingDetail> detail;  // one per member
 };
 
@@ -118,8 +118,8 @@ TimingResult TimeSequence(const std::vector<float>& samples, double rate_hz, Seq
 // windows [anchor - before, anchor + after) (samples, clipped to the signal). Windows with no
 // energy are skipped; with none left the filter is {1} (no whitening).
 std::vector<double> NeighbourhoodPredictor(const std::vector<float>& x,
-                                           const std::vector<long>& anchors, int order,
-                                           long before, long after);
+                                           const std::vector<long>& anchors, int order, long before,
+                                           long after);
 
 // Stage 2: e[n] = sum_j a[j] x[n - j] for n in [begin, end) (x taken as 0 before its start).
 std::vector<float> WhitenSegment(const std::vector<float>& x, const std::vector<double>& a,

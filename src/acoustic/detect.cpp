@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/acoustic/plausibility.hpp"
@@ -232,11 +233,20 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   po.min_sequence_impacts = options.min_sequence_impacts;
   // The predictor and template of a sequence that lost members included them: time it again,
   // and check again (its members' SNR and sigma moved a little), until nothing is removed.
+  // A sequence is known by its earliest member ever (removals keep it in `removed`).
+  auto key = [](const Sequence& q) {
+    double t = q.impacts.empty() ? 1e300 : q.impacts.front().time_s;
+    for (const RemovedImpact& r : q.removed) t = std::min(t, r.impact.time_s);
+    return t;
+  };
   for (int round = 0; round < 4; ++round) {
+    std::map<double, std::size_t> removed_before;
+    for (const Sequence& q : out.sequences) removed_before[key(q)] = q.removed.size();
     const std::vector<Warning> w = EnforcePlausibility(&out.sequences, po);
     out.warnings.insert(out.warnings.end(), w.begin(), w.end());
     if (w.empty()) break;
-    for (Sequence& q : out.sequences) TimeSequence(x, rate_hz, &q, tim);
+    for (Sequence& q : out.sequences)
+      if (q.removed.size() != removed_before[key(q)]) TimeSequence(x, rate_hz, &q, tim);
   }
   for (Sequence& q : out.sequences)
     for (Impact& imp : q.impacts)

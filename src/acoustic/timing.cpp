@@ -17,6 +17,8 @@ constexpr long kSincHalf = 8;
 constexpr int kPeakGrid = 32;
 // Members (best template matches) whose own AIC picks set the sequence's constant offset.
 constexpr std::size_t kAnchorMembers = 9;
+// Stride (samples) of the template positions over the noise window (ProjectedNoise).
+constexpr long kNoiseStride = 4;
 
 double WindowedSinc(double d) {
   if (std::fabs(d) >= static_cast<double>(kSincHalf)) return 0.0;
@@ -91,7 +93,9 @@ double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, dou
   const long hi = std::max(nb.begin, i0 - guard) - L;
   const long lo = std::max(nb.begin, i0 - guard - noise_len);
   std::vector<double> p;
-  for (long l = lo; l <= hi; ++l) {
+  // Every kNoiseStride-th position: the spread is as well estimated (hundreds of positions in a
+  // 20 ms window) at a quarter of the work.
+  for (long l = lo; l <= hi; l += kNoiseStride) {
     double acc = 0.0;
     for (long j = 0; j < L; ++j) acc += g[static_cast<std::size_t>(j)] * nb.at(l + j);
     p.push_back(std::fabs(acc));

@@ -139,7 +139,7 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
   if (flags.json) {
     nlohmann::json j;
     j["file"] = file;
-    j["sample_rate_hz"] = Num(info.sample_rate_hz);
+    j["sample_rate_hz"] = Num(info.sample_rate_hz > 0 ? info.sample_rate_hz : NAN);
     j["channels"] = info.channels;
     j["channel"] = det.channel >= 0 ? nlohmann::json(det.channel) : nlohmann::json("mix");
     j["scene"] = SceneJson(scene, an, aopt.use_drop);

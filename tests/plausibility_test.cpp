@@ -219,7 +219,7 @@ TEST(PlausibilityStages, QuietEarlierMemberIsAPhantomAndLeavesAGap) {
 
 TEST(PlausibilityStages, LowSnrAndUntimedMembersAreRemoved) {
   Sequence s = Geometric(1.0, 0.4, 0.9, 8, 0.5);
-  s.impacts[7].snr_db = -3.0;
+  s.impacts[7].snr_db = -5.0;
   auto w = RemoveLowSnrMembers(&s, PlausibilityOptions{}, "test");
   ASSERT_EQ(w.size(), 1u);
   EXPECT_EQ(w[0].code, "low_snr_removed");

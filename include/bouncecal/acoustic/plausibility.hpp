@@ -41,7 +41,7 @@
 namespace bouncecal {
 
 struct PlausibilityOptions {
-  double min_snr_db = 0.0;  // members below are removed
+  double min_snr_db = -3.0;  // members below are removed (detect.hpp says why -3 dB)
   // A member whose sigma exceeds this fraction of its shorter interval says nothing about e
   // (sigma_e / e ~ 2 sigma / T = 20 %): removed.
   double max_sigma_fraction = 0.1;

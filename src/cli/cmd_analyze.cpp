@@ -5,15 +5,20 @@
 //   bouncecal analyze drop.wav --drag quadratic --csv       # one row per bounce
 //
 // = ReadAudio + DetectImpacts (detect.hpp) + AnalyzeBounces (kinematics.hpp) of the main
-// (longest) sequence. The first impact's restitution needs the drop: it is used when a scene file
-// or --height/--impact-speed is given (otherwise the default 0.2 m would be silently assumed).
+// (longest) sequence. The first impact's restitution needs the drop: it is used when the scene
+// file has [drop] or --height/--impact-speed is given (the built-in 0.2 m is never assumed).
+// Every other value the result depends on and the user did not give is listed as assumed.
+// e_sigma includes the ball's scatter from bounce to bounce (bounce_screen.hpp);
+// e_timing_sigma is the timing part alone.
 //
 // --json: {"file", "sample_rate_hz", "channels", "channel", "scene": {effects, g, drop...},
 //   "sequence": {...}, "bounces": [{"index", "time_s", "time_sigma_s", "interval_s", "v_in_m_s",
-//   "v_in_sigma_m_s", "v_out_m_s", "v_out_sigma_m_s", "e", "e_sigma", "eta", "eta_sigma",
-//   "contact_s", "e_next_correlation"}, ...], "summary": {"mean_eta_first3",
-//   "mean_eta_first3_sigma", "mean_eta_indices", "first_e", "first_e_sigma", "n_bounces",
-//   "n_with_e", "e_min", "e_max"}, "warnings": [...]}. Unknown values are null, never "nan".
+//   "v_in_sigma_m_s", "v_out_m_s", "v_out_sigma_m_s", "e", "e_sigma", "e_timing_sigma", "eta",
+//   "eta_sigma", "contact_s", "e_next_correlation", "irregular"}, ...], "summary":
+//   {"mean_eta_first3", "mean_eta_first3_sigma", "mean_eta_indices", "first_e", "first_e_sigma",
+//   "scatter_e", "scatter_e_sigma", "drop_consistent", "drop_height_fit_m", "drag_effect_e",
+//   "n_bounces", "n_with_e", "e_min", "e_max"}, "assumed": [{"key", "value", "note"}],
+//   "warnings": [...]}. Unknown values are null, never "nan".
 // --csv: header + one row per bounce, unknown values empty.
 // Errors: one line on stderr, exit code from error.hpp, nothing on stdout.
 #include <cmath>
@@ -29,6 +34,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/fit/kinematics.hpp"
+#include "bouncecal/fit/scene_checks.hpp"
 #include "commands.hpp"
 #include "output.hpp"
 #include "scene_flags.hpp"
@@ -78,7 +84,8 @@ Summary Summarize(const Analysis& a) {
   return s;
 }
 
-nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
+nlohmann::json SceneJson(const GivenScene& gs, const Analysis& a) {
+  const Scene& scene = gs.scene;
   nlohmann::json j;
   j["source"] = scene.source.empty() ? nlohmann::json() : nlohmann::json(scene.source);
   j["drag"] = DragModelName(scene.effects.drag);
@@ -88,8 +95,11 @@ nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
   j["g_m_s2"] = scene.environment.g_m_s2;
   j["effective_gravity_m_s2"] = a.effective_gravity_m_s2;
   j["terminal_speed_m_s"] = Num(a.terminal_speed_m_s);
-  j["drop_height_m"] = use_drop ? Opt(scene.drop.height_m) : nlohmann::json();
-  j["impact_speed_m_s"] = use_drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
+  const bool drop = gs.drop_given;
+  j["drop_height_m"] = drop ? Opt(scene.drop.height_m) : nlohmann::json();
+  j["drop_height_sigma_m"] = drop && scene.drop.height_m ? nlohmann::json(a.height_sigma_m)
+                                                         : nlohmann::json();
+  j["impact_speed_m_s"] = drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
   j["ball"] = {{"diameter_m", scene.ball.diameter_m},
                {"mass_kg", Num(scene.ball.Mass())},
                {"density_kg_m3", Num(scene.ball.Density())},
@@ -97,7 +107,8 @@ nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
   return j;
 }
 
-std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
+std::string EffectsLine(const GivenScene& gs, const Analysis& a) {
+  const Scene& scene = gs.scene;
   std::ostringstream o;
   o << "scene: drag " << DragModelName(scene.effects.drag);
   if (scene.effects.drag != DragModel::kNone) {
@@ -107,113 +118,142 @@ std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
     << (scene.effects.contact_duration ? "on" : "off") << "; g_eff "
     << Fixed(a.effective_gravity_m_s2, 5) << " m/s^2; ball " << scene.ball.material << " "
     << Fixed(scene.ball.diameter_m * 1000, 2) << " mm";
-  if (!use_drop) {
+  if (!gs.drop_given) {
     o << "; drop unknown (first e not computed: give --height or --impact-speed)";
   } else if (scene.drop.height_m) {
     o << "; drop height " << Fixed(*scene.drop.height_m, 4) << " m";
+    if (a.height_sigma_m > 0.0) o << " +- " << Fixed(a.height_sigma_m, 4) << " m";
   } else if (scene.drop.impact_speed_m_s) {
     o << "; first impact speed " << Fixed(*scene.drop.impact_speed_m_s, 4) << " m/s";
   }
   return o.str();
 }
 
-void Run(const AnalyzeFlags& flags) {
+struct Analyzed {
+  GivenScene gs;
+  AnalysisOptions options;
+  Audio audio;
+  DetectionResult det;
+  Analysis an;
+  std::vector<Warning> warnings;
+  std::vector<Assumed> assumed;
+};
+
+Analyzed Analyze(const AnalyzeFlags& flags) {
+  Analyzed r;
   // The scene first: it is cheap and its errors should not wait for the detector.
-  Scene scene = ResolveScene(flags.scene);
+  r.gs = ResolveGivenScene(flags.scene);
+  Scene& scene = r.gs.scene;
   if (flags.contact_time_s) scene.effects.contact_duration = true;  // a given duration is used
-  AnalysisOptions aopt;
-  aopt.use_drop = !flags.scene.scene_file.empty() || flags.scene.height_m.has_value() ||
-                  flags.scene.impact_speed_m_s.has_value();
-  if (flags.contact_time_s) aopt.contact_time_s = *flags.contact_time_s;
+  r.options.use_drop = r.gs.drop_given;
+  // Drag off by the user's choice, or no ball to compute it for: no drag check.
+  r.options.check_drag = !r.gs.Given("effects.drag") && r.gs.ball_given;
+  if (flags.contact_time_s) r.options.contact_time_s = *flags.contact_time_s;
   std::string why;
-  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
+  if (!r.options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
 
   const ChannelSelection selection = ParseChannelSelection(flags.channel);
-  const Audio audio = ReadAudio(flags.file);
+  r.audio = ReadAudio(flags.file);
   DetectOptions dopt;
   dopt.channel = selection;
-  const DetectionResult det = DetectImpacts(audio, dopt);
-  if (det.main_sequence < 0 || det.sequences.empty()) {
+  r.det = DetectImpacts(r.audio, dopt);
+  if (r.det.main_sequence < 0 || r.det.sequences.empty()) {
     throw Error(ErrorCode::kNoBounces, flags.file + ": no bounce sequence found");
   }
-  Analysis an;
   try {
-    an = AnalyzeBounces(det.main(), scene, aopt);
+    r.an = AnalyzeBounces(r.det.main(), scene, r.options);
   } catch (const Error& e) {
     if (e.code() == ErrorCode::kNoBounces) throw Error(e.code(), flags.file + ": " + e.what());
     throw;
   }
-  std::vector<Warning> warnings = det.warnings;
-  for (const Warning& w : an.warnings) warnings.push_back(w);
+  r.warnings = SceneUnitWarnings(scene, r.gs.drop_given);
+  for (const Warning& w : r.det.warnings) r.warnings.push_back(w);
+  for (const Warning& w : r.an.warnings) r.warnings.push_back(w);
+  r.assumed = AssumedValues(r.gs, false);
+  return r;
+}
+
+void PrintJson(const AnalyzeFlags& flags, const Analyzed& r) {
+  const Analysis& an = r.an;
   const Summary sum = Summarize(an);
-  const Sequence& seq = det.main();
-
-  if (flags.json) {
-    nlohmann::json j;
-    j["file"] = flags.file;
-    j["sample_rate_hz"] = audio.info.sample_rate_hz;
-    j["channels"] = audio.info.channels;
-    j["channel"] = det.channel >= 0 ? nlohmann::json(det.channel) : nlohmann::json("mix");
-    j["scene"] = SceneJson(scene, an, aopt.use_drop);
-    j["sequence"] = {{"n_sequences", det.sequences.size()},
-                     {"main_sequence", det.main_sequence},
-                     {"n_impacts", seq.impacts.size()},
-                     {"missed_after", seq.missed_after},
-                     {"end_reason", seq.end_reason}};
-    nlohmann::json bounces = nlohmann::json::array();
-    for (const Bounce& b : an.bounces) {
-      bounces.push_back({{"index", b.index},
-                         {"time_s", b.time_s},
-                         {"time_sigma_s", Num(b.time_sigma_s)},
-                         {"interval_s", Num(b.interval_s)},
-                         {"v_in_m_s", Num(b.v_in_m_s)},
-                         {"v_in_sigma_m_s", Num(b.v_in_sigma_m_s)},
-                         {"v_out_m_s", Num(b.v_out_m_s)},
-                         {"v_out_sigma_m_s", Num(b.v_out_sigma_m_s)},
-                         {"e", Num(b.e)},
-                         {"e_sigma", Num(b.e_sigma)},
-                         {"eta", Num(b.eta)},
-                         {"eta_sigma", Num(b.eta_sigma)},
-                         {"contact_s", Num(b.contact_s)},
-                         {"e_next_correlation", Num(b.e_next_correlation)}});
-    }
-    j["bounces"] = bounces;
-    j["summary"] = {{"mean_eta_first3", Opt(an.mean_eta_first3)},
-                    {"mean_eta_first3_sigma", Opt(an.mean_eta_first3_sigma)},
-                    {"mean_eta_indices", an.mean_eta_indices},
-                    {"first_e", Opt(an.first_e)},
-                    {"first_e_sigma", Opt(an.first_e_sigma)},
-                    {"n_bounces", an.bounces.size()},
-                    {"n_with_e", sum.n_with_e},
-                    {"e_min", Num(sum.e_min)},
-                    {"e_max", Num(sum.e_max)}};
-    j["warnings"] = WarningsJson(warnings);
-    std::cout << j.dump(2) << "\n";
-    return;
+  const Sequence& seq = r.det.main();
+  nlohmann::json j;
+  j["file"] = flags.file;
+  j["sample_rate_hz"] = r.audio.info.sample_rate_hz;
+  j["channels"] = r.audio.info.channels;
+  j["channel"] = r.det.channel >= 0 ? nlohmann::json(r.det.channel) : nlohmann::json("mix");
+  j["scene"] = SceneJson(r.gs, an);
+  j["sequence"] = {{"n_sequences", r.det.sequences.size()},
+                   {"main_sequence", r.det.main_sequence},
+                   {"n_impacts", seq.impacts.size()},
+                   {"missed_after", seq.missed_after},
+                   {"end_reason", seq.end_reason}};
+  nlohmann::json bounces = nlohmann::json::array();
+  for (const Bounce& b : an.bounces) {
+    bounces.push_back({{"index", b.index},
+                       {"time_s", b.time_s},
+                       {"time_sigma_s", Num(b.time_sigma_s)},
+                       {"interval_s", Num(b.interval_s)},
+                       {"v_in_m_s", Num(b.v_in_m_s)},
+                       {"v_in_sigma_m_s", Num(b.v_in_sigma_m_s)},
+                       {"v_out_m_s", Num(b.v_out_m_s)},
+                       {"v_out_sigma_m_s", Num(b.v_out_sigma_m_s)},
+                       {"e", Num(b.e)},
+                       {"e_sigma", Num(b.e_total_sigma)},
+                       {"e_timing_sigma", Num(b.e_sigma)},
+                       {"eta", Num(b.eta)},
+                       {"eta_sigma", Num(b.eta_sigma)},
+                       {"contact_s", Num(b.contact_s)},
+                       {"e_next_correlation", Num(b.e_next_correlation)},
+                       {"irregular", b.irregular}});
   }
+  j["bounces"] = bounces;
+  j["summary"] = {{"mean_eta_first3", Opt(an.mean_eta_first3)},
+                  {"mean_eta_first3_sigma", Opt(an.mean_eta_first3_sigma)},
+                  {"mean_eta_indices", an.mean_eta_indices},
+                  {"first_e", Opt(an.first_e)},
+                  {"first_e_sigma", Opt(an.first_e_sigma)},
+                  {"scatter_e", Opt(an.scatter_e)},
+                  {"scatter_e_sigma", Opt(an.scatter_e_sigma)},
+                  {"drop_consistent", an.drop_consistent},
+                  {"drop_height_fit_m", Opt(an.drop_height_fit_m)},
+                  {"drag_effect_e", Opt(an.drag_effect_e)},
+                  {"n_bounces", an.bounces.size()},
+                  {"n_with_e", sum.n_with_e},
+                  {"e_min", Num(sum.e_min)},
+                  {"e_max", Num(sum.e_max)}};
+  j["assumed"] = AssumedJson(r.assumed);
+  j["warnings"] = WarningsJson(r.warnings);
+  std::cout << j.dump(2) << "\n";
+}
 
-  PrintWarnings(warnings);
+void PrintCsv(const Analysis& an) {
   std::ostringstream o;
-  if (flags.csv) {
-    o << "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
-         "v_out_sigma_m_s,e,e_sigma,eta,eta_sigma,contact_s\n";
-    for (const Bounce& b : an.bounces) {
-      o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
-        << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
-        << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
-        << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta) << "," << CsvNum(b.eta_sigma) << ","
-        << CsvNum(b.contact_s) << "\n";
-    }
-    std::cout << o.str();
-    return;
+  o << "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
+       "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular\n";
+  for (const Bounce& b : an.bounces) {
+    o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
+      << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
+      << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
+      << "," << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta)
+      << "," << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << ","
+      << (b.irregular ? 1 : 0) << "\n";
   }
+  std::cout << o.str();
+}
 
-  o << flags.file << ": " << Fixed(audio.info.sample_rate_hz, 0) << " Hz, " << audio.info.channels
-    << " channel(s), "
-    << (det.channel >= 0 ? "channel " + std::to_string(det.channel) : std::string("mix"))
+void PrintHuman(const AnalyzeFlags& flags, const Analyzed& r) {
+  const Analysis& an = r.an;
+  const Scene& scene = r.gs.scene;
+  const Summary sum = Summarize(an);
+  const Sequence& seq = r.det.main();
+  std::ostringstream o;
+  o << flags.file << ": " << Fixed(r.audio.info.sample_rate_hz, 0) << " Hz, "
+    << r.audio.info.channels << " channel(s), "
+    << (r.det.channel >= 0 ? "channel " + std::to_string(r.det.channel) : std::string("mix"))
     << " used; " << seq.impacts.size() << " impacts in the main sequence (of "
-    << det.sequences.size() << " sequence(s)), end: " << seq.end_reason << "\n";
-  o << EffectsLine(scene, an, aopt.use_drop) << "\n\n";
+    << r.det.sequences.size() << " sequence(s)), end: " << seq.end_reason << "\n";
+  o << EffectsLine(r.gs, an) << "\n" << AssumedText(r.assumed) << "\n";
   // "value +- sigma" pairs, "-" where unknown.
   auto pm = [](double v, double sigma, int decimals, int sigma_decimals) {
     if (!std::isfinite(v)) return std::string("-");
@@ -231,12 +271,13 @@ void Run(const AnalyzeFlags& flags) {
   o << rstrip(head);
   for (const Bounce& b : an.bounces) {
     char line[512];
-    std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s\n", b.index,
+    std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s%s\n", b.index,
                   b.time_s, Fixed(b.time_sigma_s * 1e6, 2).c_str(), Fixed(b.interval_s, 6).c_str(),
                   pm(b.v_in_m_s, b.v_in_sigma_m_s, 5, 5).c_str(),
                   pm(b.v_out_m_s, b.v_out_sigma_m_s, 5, 5).c_str(),
-                  pm(b.e, b.e_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
-                  show_contact ? ("  " + Fixed(b.contact_s * 1e6, 1, 10)).c_str() : "");
+                  pm(b.e, b.e_total_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
+                  show_contact ? ("  " + Fixed(b.contact_s * 1e6, 1, 10)).c_str() : "",
+                  b.irregular ? "  irregular" : "");
     o << rstrip(line);
   }
   o << "\nsummary: " << an.bounces.size() << " impacts, " << sum.n_with_e << " with e";
@@ -247,13 +288,34 @@ void Run(const AnalyzeFlags& flags) {
     o << "; first impact e = " << Fixed(*an.first_e, 5) << " +- " << Fixed(*an.first_e_sigma, 5);
   }
   o << "\n";
+  if (an.scatter_e) {
+    o << "scatter of e from bounce to bounce: ";
+    if (*an.scatter_e > 0.0) {
+      o << Fixed(*an.scatter_e, 5) << " +- " << Fixed(*an.scatter_e_sigma, 5);
+    } else {
+      o << "0 (< " << Fixed(*an.scatter_e_sigma, 5) << ", 68 % upper limit)";
+    }
+    o << " (e sigmas above include it; timing alone: e_timing_sigma in --json)\n";
+  }
   if (an.mean_eta_first3) {
     o << "mean eta of the first three (impacts";
     for (int k : an.mean_eta_indices) o << " " << k;
-    o << ") = " << Fixed(*an.mean_eta_first3, 5) << " +- " << Fixed(*an.mean_eta_first3_sigma, 5)
-      << "  (seed 002: 0.58 for a steel ball on copper)\n";
+    o << ") = " << Fixed(*an.mean_eta_first3, 5) << " +- " << Fixed(*an.mean_eta_first3_sigma, 5);
+    // The seed paper's number is for its own experiment only.
+    if (scene.ball.material == "steel" && scene.surface.material == "copper") {
+      o << "  (seed 002: 0.58 for a steel ball on copper)";
+    }
+    o << "\n";
   }
   std::cout << o.str();
+}
+
+void Run(const AnalyzeFlags& flags) {
+  const Analyzed r = Analyze(flags);
+  if (flags.json) return PrintJson(flags, r);
+  PrintWarnings(r.warnings);
+  if (flags.csv) return PrintCsv(r.an);
+  PrintHuman(flags, r);
 }
 
 }  // namespace

@@ -182,20 +182,45 @@ std::vector<bool> FindUndetermined(const Solution& s, const FitProblem& fp,
   std::vector<bool> out(fp.setup.free.size(), false);
   why->assign(fp.setup.free.size(), "");
   if (!s.ok) return out;
-  const Eigen::MatrixXd js = WhitenedRelative(fp, s);
-  std::vector<double> rel;
-  std::vector<bool> null;
-  const auto bad = NullOrLoose(js, fp.options.undetermined_relative_sigma, &rel, &null);
+  const Eigen::MatrixXd js_all = WhitenedRelative(fp, s);
   const std::vector<int> active = ActiveOf(s);
-  for (size_t j = 0; j < active.size(); ++j) {
-    if (!bad[j]) continue;
-    const size_t a = static_cast<size_t>(active[j]);
-    const std::string name = fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].name;
-    out[a] = true;
-    (*why)[a] = null[j] ? name + ": the fitted quantities do not change with it (or only together "
-                                 "with another parameter) at the measured speeds"
-                        : name + ": its relative sigma " + Fmt(rel[j], 2) + " exceeds " +
-                              Fmt(fp.options.undetermined_relative_sigma, 2);
+  // Columns still considered; a degenerate combination (k and A enter a viscoelastic e only as
+  // A k^(2/5)) is resolved by declaring the freed non-damping parameter undetermined first and
+  // testing the rest again, so the damping keeps its value and sigma.
+  std::vector<size_t> cols(active.size());
+  for (size_t j = 0; j < cols.size(); ++j) cols[j] = j;
+  while (!cols.empty()) {
+    Eigen::MatrixXd js(js_all.rows(), static_cast<Eigen::Index>(cols.size()));
+    for (size_t c = 0; c < cols.size(); ++c) js.col(static_cast<Eigen::Index>(c)) = js_all.col(static_cast<Eigen::Index>(cols[c]));
+    std::vector<double> rel;
+    std::vector<bool> null;
+    const auto bad = NullOrLoose(js, fp.options.undetermined_relative_sigma, &rel, &null);
+    std::vector<size_t> drop;
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const size_t a = static_cast<size_t>(active[cols[c]]);
+      if (bad[c] && !fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].damping) drop.push_back(c);
+    }
+    const bool only_freed = !drop.empty();
+    if (!only_freed) {
+      for (size_t c = 0; c < cols.size(); ++c) {
+        if (bad[c]) drop.push_back(c);
+      }
+    }
+    for (size_t c : drop) {
+      const size_t a = static_cast<size_t>(active[cols[c]]);
+      const std::string name = fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].name;
+      out[a] = true;
+      (*why)[a] = null[c] ? name + ": the fitted quantities do not change with it (or only "
+                                   "together with another parameter) at the measured speeds"
+                          : name + ": its relative sigma " + Fmt(rel[c], 2) + " exceeds " +
+                                Fmt(fp.options.undetermined_relative_sigma, 2);
+    }
+    if (!only_freed || drop.empty()) break;
+    std::vector<size_t> rest;
+    for (size_t c = 0; c < cols.size(); ++c) {
+      if (std::find(drop.begin(), drop.end(), c) == drop.end()) rest.push_back(cols[c]);
+    }
+    cols = rest;
   }
   return out;
 }

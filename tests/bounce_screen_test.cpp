@@ -72,9 +72,9 @@ TEST(BounceScreen, ScatterIsRecoveredWithACoveringSigma) {
       const Bounce& b = a.bounces[5];
       EXPECT_NEAR(b.e_total_sigma, std::hypot(b.e_sigma, *a.scatter_e), 1e-12);
     }
-    // ~30 bounces, cubic curve: measured mean/true 0.96 (0.003) and 0.97 (0.008), pull RMS
-    // 1.0-1.1 over these 40 seeds.
-    EXPECT_NEAR(mean / scatter, 1.0, 0.08) << scatter << " with " << n << " impacts";
+    // 63 impacts, four-term curve: measured mean/true 0.979 (0.003) and 0.982 (0.008), pull RMS
+    // 1.14 and 1.12 over these 40 seeds; bound 5 % and [0.7, 1.4].
+    EXPECT_NEAR(mean / scatter, 1.0, 0.05) << scatter << " with " << n << " impacts";
     EXPECT_GT(std::sqrt(pull2 / seeds), 0.7);
     EXPECT_LT(std::sqrt(pull2 / seeds), 1.4);
   }
@@ -131,8 +131,8 @@ TEST(BounceScreen, WrongDropHeightsAreDiagnosedWithTheHeightThatFits) {
     EXPECT_FALSE(a.drop_consistent);
     ASSERT_EQ(Count(a.warnings, "drop_height_inconsistent"), 1);
     ASSERT_TRUE(a.drop_height_fit_m.has_value());
-    // Measured: 1.004 m with this seed (scatter 0.004 on the first e moves it by ~1 %).
-    EXPECT_NEAR(*a.drop_height_fit_m, 1.0, 0.03);
+    // Measured 1.007 m with this seed (the scatter of 0.004 on the first e moves it by ~1 %).
+    EXPECT_NEAR(*a.drop_height_fit_m, 1.0, 0.02);
   }
   {  // centimetres
     const Analysis a = AnalyzeBounces(seq, BallScene(100.0));

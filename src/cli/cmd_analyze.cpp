@@ -289,11 +289,16 @@ void PrintHuman(const AnalyzeFlags& flags, const Analyzed& r) {
   }
   o << "\n";
   if (an.scatter_e) {
+    auto g2 = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.2g", v);
+      return std::string(buf);
+    };
     o << "scatter of e from bounce to bounce: ";
     if (*an.scatter_e > 0.0) {
-      o << Fixed(*an.scatter_e, 5) << " +- " << Fixed(*an.scatter_e_sigma, 5);
+      o << g2(*an.scatter_e) << " +- " << g2(*an.scatter_e_sigma);
     } else {
-      o << "0 (< " << Fixed(*an.scatter_e_sigma, 5) << ", 68 % upper limit)";
+      o << "0 (< " << g2(*an.scatter_e_sigma) << ", 68 % upper limit)";
     }
     o << " (e sigmas above include it; timing alone: e_timing_sigma in --json)\n";
   }

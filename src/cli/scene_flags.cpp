@@ -238,7 +238,7 @@ std::vector<Assumed> AssumedValues(const GivenScene& gs, bool for_calibration) {
   auto add = [&](const std::string& key, const std::string& value, const std::string& note) {
     if (!gs.Given(key)) out.push_back({key, value, note});
   };
-  add("environment.g_m_s2", Num(s.environment.g_m_s2), "gravity (seed 002's value)");
+  add("environment.g_m_s2", Num(s.environment.g_m_s2), "gravity; the seed paper's value");
   add("effects.drag", DragModelName(s.effects.drag), "air drag in the flights");
   add("effects.buoyancy", s.effects.buoyancy ? "true" : "false", "buoyancy in the flights");
   add("effects.contact_duration", s.effects.contact_duration ? "true" : "false",

@@ -58,15 +58,12 @@ Calibration Skeleton(const calib::FitProblem& fp, const std::vector<double>& p) 
   c.warnings = fp.warnings;
   c.scene = fp.scene;
   for (const auto& f : c.parameters) c.scene.law.parameters[f.name] = f.value;
-  bool drop_used = false;
-  for (const auto& r : fp.recordings) drop_used |= r.drop_used;
   if (!fp.options.use_drop) {
     // The drop was not given: the result must not claim one.
     c.scene.drop.height_m.reset();
     c.scene.drop.height_sigma_m.reset();
     c.scene.drop.impact_speed_m_s.reset();
   }
-  (void)drop_used;
   return c;
 }
 
@@ -189,6 +186,11 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
                         " is >= 1: these impacts do not form a damped bounce sequence");
   }
   const std::vector<std::vector<double>> starts = calib::MakeStarts(&fp, &simulations);  // 2
+  if (scene.effects.contact_duration) {
+    // The law's own contact durations at its best start (they change with the damping only
+    // at the percent level of a few-percent change of the damping).
+    calib::AnalyzeRecordings(&fp, recordings, &starts.front());
+  }
   calib::StartsReport report;
   std::vector<bool> held(fp.setup.free.size(), false);
   calib::Solution s = calib::SolveFromStarts(fp, starts, held, &report, &simulations);  // 3

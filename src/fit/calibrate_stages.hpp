@@ -86,6 +86,12 @@ struct FitProblem {
 // data cannot give is recorded in not_determinable.
 FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const Scene& scene,
                         const CalibrationOptions& options);
+// The kinematics and screen of every recording, and the per-bounce data. law_contact: when the
+// scene has the contact-duration effect and the law a closed-form contact time, take the
+// contacts out of the intervals with the law's own durations at these parameters (else the
+// Hertz estimate).
+void AnalyzeRecordings(FitProblem* problem, const std::vector<CalibrationInput>& recordings,
+                       const std::vector<double>* law_contact);
 
 // ---- Stage 2: starts ------------------------------------------------------------------------
 

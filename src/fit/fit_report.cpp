@@ -78,7 +78,7 @@ std::string Calibration::FullReport() const {
     }
     os << " " << std::setw(8) << p.unit << std::right;
     if (p.fixed) {
-      os << "  held at the scene value"
+      os << "  held, not fitted"
          << (p.determined ? " (the data could fit it: free it with free_parameters)"
                           : " (the data cannot determine it)");
     } else if (p.determined) {

@@ -186,27 +186,34 @@ double ModelRestitution(const LawSetup& s, const std::vector<double>& p, double 
   return SimulateContact(*s.law, p, s.body, v_m_s, g, sim).restitution;
 }
 
-FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const Scene& scene,
-                        const CalibrationOptions& options) {
-  std::string err;
-  if (!options.IsValid(&err)) throw Error(ErrorCode::kUsage, err);
-  if (!scene.IsValid(&err)) throw Error(ErrorCode::kBadScene, err);
-  if (recordings.empty()) throw Error(ErrorCode::kUsage, "calibrate: no recordings");
-  FitProblem fp;
-  fp.options = options;
-  fp.scene = scene;
-  fp.setup = MakeLawSetup(scene, options);
-  fp.g = scene.EffectiveGravity();
-  fp.sim.rel_tolerance = options.rel_tolerance;
-  fp.sim.abs_tolerance = std::min(1e-12, options.rel_tolerance * 1e-3);
+void AnalyzeRecordings(FitProblem* problem, const std::vector<CalibrationInput>& recordings,
+                       const std::vector<double>* law_contact) {
+  FitProblem& fp = *problem;
+  const CalibrationOptions& options = fp.options;
+  const Scene& scene = fp.scene;
   const bool several = recordings.size() > 1;
+  fp.recordings.clear();
+  fp.warnings.clear();
+  fp.data = {};
   std::vector<double> scatters;
+  AnalysisOptions ao = options.analysis;
+  ao.use_drop = options.use_drop;
+  if (law_contact && scene.effects.contact_duration) {
+    // The contact durations of the law itself (at these parameters) instead of the Hertz
+    // estimate: the intervals of a ball under this law contain exactly these contacts.
+    const LawSetup& su = fp.setup;
+    const std::vector<double> p = *law_contact;
+    if (su.law->ContactTime(p, su.body, 1.0)) {
+      ao.contact_time_of_speed = [&su, p, scene](double v) {
+        const auto t = su.law->ContactTime(p, su.body, v);
+        return t ? *t : HertzContactTime(scene, v);
+      };
+    }
+  }
   for (size_t r = 0; r < recordings.size(); ++r) {
     RecordingData rd;
     rd.name = recordings[r].name;
     rd.sequence = recordings[r].sequence;
-    AnalysisOptions ao = options.analysis;
-    ao.use_drop = options.use_drop;
     try {
       rd.analysis = AnalyzeBounces(rd.sequence, scene, ao);
     } catch (const Error& e) {
@@ -241,6 +248,22 @@ FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const S
   fp.e_median = Median(es);
   fp.v_median = Median(vs);
   fp.scatter_start = options.estimate_scatter && !scatters.empty() ? Median(scatters) : 0.0;
+}
+
+FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const Scene& scene,
+                        const CalibrationOptions& options) {
+  std::string err;
+  if (!options.IsValid(&err)) throw Error(ErrorCode::kUsage, err);
+  if (!scene.IsValid(&err)) throw Error(ErrorCode::kBadScene, err);
+  if (recordings.empty()) throw Error(ErrorCode::kUsage, "calibrate: no recordings");
+  FitProblem fp;
+  fp.options = options;
+  fp.scene = scene;
+  fp.setup = MakeLawSetup(scene, options);
+  fp.g = scene.EffectiveGravity();
+  fp.sim.rel_tolerance = options.rel_tolerance;
+  fp.sim.abs_tolerance = std::min(1e-12, options.rel_tolerance * 1e-3);
+  AnalyzeRecordings(&fp, recordings, nullptr);
   if (fp.not_determinable.empty()) CountData(&fp, recordings);
   return fp;
 }

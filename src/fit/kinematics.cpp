@@ -156,6 +156,7 @@ Flights FlightStage(const Sequence& sequence, const Scene& scene, const Analysis
   const bool contact = scene.effects.contact_duration;
   auto contact_time = [&](double v) {
     if (!contact) return 0.0;
+    if (options.contact_time_of_speed) return options.contact_time_of_speed(v);
     if (options.contact_time_s > 0.0) return options.contact_time_s;
     return HertzContactTime(scene, v);
   };

@@ -17,6 +17,7 @@
 //   Analysis a = AnalyzeBounces(result.main(), scene, {});
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,6 +60,9 @@ struct AnalysisOptions {
   // Contact duration model when scene.effects.contact_duration is on: a fixed value, or
   // (when <= 0) the Hertz estimate from the scene's materials (PHYSICS.md §2).
   double contact_time_s = 0.0;
+  // When set, the contact duration at an impact speed (m/s -> s), e.g. the contact law's own
+  // (calibrate uses the fitted law's); it replaces contact_time_s and the Hertz estimate.
+  std::function<double(double)> contact_time_of_speed;
   // Use the scene's drop (height or impact speed) for the first impact's arrival speed. The
   // CLI turns this off when the user gave neither a scene file nor --height/--impact-speed
   // (the default 0.2 m would otherwise be taken as known).
@@ -68,9 +72,9 @@ struct AnalysisOptions {
   // Family-wise false-alarm probability of the irregular-bounce test over all bounces
   // (Bonferroni: each bounce is flagged beyond the two-sided normal quantile of alpha / n).
   double irregular_alpha = 0.01;
-  // A first e further than this many sigmas from the trend of the next bounces makes the
-  // drop height inconsistent (beyond p ~ 6e-5 for a Gaussian; the margin covers the short
-  // extrapolation of the local trend to the first impact's speed).
+  // A stated first arrival speed further than this many sigmas from the one the next bounces'
+  // trend agrees with makes the drop height inconsistent (p ~ 6e-5 for a Gaussian: a single
+  // test per recording, with margin for the trend's form beyond its stated variance).
   double drop_z_max = 4.0;
   // When the scene has no drag: warn (drag_likely_needed) if quadratic drag would change some
   // e by more than this many of its timing sigmas. The CLI turns the check off when the user

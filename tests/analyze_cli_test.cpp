@@ -63,8 +63,7 @@ TEST(AnalyzeCli, TheBundledSceneListsItsAssumptionsAndTheScatter) {
   const auto human = Analyze("--scene " + kScene);
   ASSERT_EQ(human.exit_code, 0);
   EXPECT_NE(human.out.find("assumed (not given): environment.g_m_s2 = 9.8"), std::string::npos);
-  EXPECT_NE(human.out.find("scatter of e from bounce to bounce: "), std::string::npos)
-      << human.out;
+  EXPECT_NE(human.out.find("scatter of e from bounce to bounce: "), std::string::npos) << human.out;
   EXPECT_NE(human.out.find("(seed 002: 0.58 for a steel ball on copper)"), std::string::npos);
 }
 
@@ -125,8 +124,9 @@ TEST(AnalyzeCli, DragIsSuggestedOnlyWhenTheUserDidNotChooseIt) {
     EXPECT_NE(w.at("message").get<std::string>().find("effects.drag"), std::string::npos);
   }
   EXPECT_GT(j.at("summary").at("drag_effect_e").get<double>(), 1e-4);
-  const auto chosen = Analyze("--height 0.2 --diameter 0.01 --material steel --contact-duration "
-                              "--drag none --json");
+  const auto chosen = Analyze(
+      "--height 0.2 --diameter 0.01 --material steel --contact-duration "
+      "--drag none --json");
   ASSERT_EQ(chosen.exit_code, 0);
   EXPECT_FALSE(Contains(Codes(nlohmann::json::parse(chosen.out)), "drag_likely_needed"));
 }

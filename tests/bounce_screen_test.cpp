@@ -83,7 +83,8 @@ TEST(BounceScreen, ScatterIsRecoveredWithACoveringSigma) {
 TEST(BounceScreen, CleanSequenceHasNoFlags) {
   const Scene s = BallScene(1.0);
   for (int seed = 1; seed <= 10; ++seed) {
-    const Analysis a = AnalyzeBounces(Onsets(Truth(s, 0.0, 1), 5e-6, static_cast<std::uint64_t>(seed)), s);
+    const Analysis a =
+        AnalyzeBounces(Onsets(Truth(s, 0.0, 1), 5e-6, static_cast<std::uint64_t>(seed)), s);
     EXPECT_EQ(Count(a.warnings, "irregular_bounce"), 0) << seed;
     EXPECT_EQ(Count(a.warnings, "drop_height_inconsistent"), 0) << seed;
     EXPECT_TRUE(a.drop_consistent);

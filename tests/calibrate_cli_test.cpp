@@ -76,9 +76,10 @@ const std::string kWithScene = kRecording + " --scene " + kScene;
 TEST(CalibrateCli, HumanReportRecoversTheTrueA) {
   const CliRun r = Exec("calibrate " + kWithScene);
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const char* want : {"law hertz-viscoelastic, restitution fit", "outcome: converged",
-                           "scatter of e from bounce to bounce: 0", "determined by the sound: A",
-                           "e(v) over the measured speeds", "assumed (not given): law.parameters.k"}) {
+  for (const char* want :
+       {"law hertz-viscoelastic, restitution fit", "outcome: converged",
+        "scatter of e from bounce to bounce: 0", "determined by the sound: A",
+        "e(v) over the measured speeds", "assumed (not given): law.parameters.k"}) {
     EXPECT_NE(r.out.find(want), std::string::npos) << want << "\n" << r.out;
   }
   // "  A    = 5.159972e-07 ± 3.74e-13   s         fitted"
@@ -124,7 +125,8 @@ TEST(CalibrateCli, JsonIsTheParameterFileObjectAndOutputRules) {
   EXPECT_EQ(again.code, 11);
   EXPECT_EQ(Lines(again.err), 1) << again.err;
   EXPECT_TRUE(again.out.empty());
-  const CliRun forced = Exec("calibrate " + kWithScene + " -o " + out + " --force --law hertz-tsuji");
+  const CliRun forced =
+      Exec("calibrate " + kWithScene + " -o " + out + " --force --law hertz-tsuji");
   // A constant-e law cannot follow this recording's e(v): poor_fit (14), the file still written.
   EXPECT_EQ(forced.code, 14) << forced.err;
   EXPECT_NE(forced.err.find("calibrate: outcome poor_fit: "), std::string::npos) << forced.err;
@@ -149,8 +151,9 @@ TEST(CalibrateCli, EveryOutcomeHasItsExitCodeAndOneLine) {
   const auto ij = nlohmann::json::parse(it.out);
   EXPECT_EQ(ij.at("fit").at("outcome"), "iteration_limit");
   EXPECT_EQ(ij.at("warnings")[0].at("code"), "iteration_limit");
-  EXPECT_NE(it.err.find("calibrate: outcome iteration_limit: the solver reached max_iterations = 1"),
-            std::string::npos)
+  EXPECT_NE(
+      it.err.find("calibrate: outcome iteration_limit: the solver reached max_iterations = 1"),
+      std::string::npos)
       << it.err;
   // poor_fit (14): a constant-e law on a recording whose e changes with speed.
   const CliRun poor = Exec("calibrate " + kWithScene + " --law walton-braun");
@@ -189,8 +192,8 @@ TEST(CalibrateCli, DropHeightSigmaAndItsContradictions) {
   const auto j = nlohmann::json::parse(ok.out);
   EXPECT_EQ(j.at("scene").at("drop").at("height_m"), 0.2);
   for (const auto& a : j.at("assumed")) EXPECT_NE(a.at("key"), "drop.height_sigma_m");
-  const CliRun no_height = Exec("calibrate " + kRecording +
-                                " --diameter 0.01 --material steel --height-sigma 0.01");
+  const CliRun no_height =
+      Exec("calibrate " + kRecording + " --diameter 0.01 --material steel --height-sigma 0.01");
   EXPECT_EQ(no_height.code, 9);
   EXPECT_NE(no_height.err.find("--height-sigma 0.01: the drop height it belongs to is not given"),
             std::string::npos)

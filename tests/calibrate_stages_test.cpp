@@ -151,7 +151,8 @@ TEST(CalibrateStages, TrajectorySolveTiesV0ToTheDropAndPropagatesTheScatter) {
   EXPECT_NEAR(with.scatter.chi2 / dof, 1.0, 0.6);
   EXPECT_GT(without.scatter.chi2 / dof, 20.0);
   EXPECT_GT(with.scatter.covariance(0, 0), 10.0 * without.scatter.covariance(0, 0));
-  EXPECT_GE(with.t0[0], t.sequence.impacts[0].time_s - 0.5 * (t.sequence.impacts[1].time_s - t.sequence.impacts[0].time_s));
+  EXPECT_GE(with.t0[0], t.sequence.impacts[0].time_s -
+                            0.5 * (t.sequence.impacts[1].time_s - t.sequence.impacts[0].time_s));
 }
 
 TEST(CalibrateStages, EOfVBandIsTheGradientThroughTheCovariance) {

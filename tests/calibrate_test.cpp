@@ -258,7 +258,8 @@ TEST(CalibrateOutcome, IterationLimitIsReportedAsSuch) {
   opt.max_iterations = 1;
   opt.seed_from_inverse_map = false;  // start from the law's default, far from the truth
   opt.max_starts = 1;
-  const Calibration c = Calibrate({{"x", t.sequence}}, SteelScene("walton-braun", {{"gamma", 0.02}}), opt);
+  const Calibration c =
+      Calibrate({{"x", t.sequence}}, SteelScene("walton-braun", {{"gamma", 0.02}}), opt);
   EXPECT_EQ(c.outcome, FitOutcome::kIterationLimit) << c.FullReport();
   EXPECT_TRUE(Has(c, "iteration_limit"));
   EXPECT_NE(c.reason.find("max_iterations = 1"), std::string::npos) << c.reason;

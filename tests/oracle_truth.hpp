@@ -19,9 +19,9 @@
 namespace oracle_truth {
 
 struct Options {
-  double scatter_e = 0.0;          // per-bounce scatter of e
-  double timing_sigma_s = 0.0;     // Gaussian noise added to each onset (and reported)
-  double reported_sigma_s = 0.0;   // reported sigma when no noise is added (> 0 for weights)
+  double scatter_e = 0.0;            // per-bounce scatter of e
+  double timing_sigma_s = 0.0;       // Gaussian noise added to each onset (and reported)
+  double reported_sigma_s = 0.0;     // reported sigma when no noise is added (> 0 for weights)
   bool contact_in_interval = false;  // onset-to-onset intervals include the oracle contact time
   double min_interval_s = 0.004;
   int max_impacts = 200;
@@ -59,7 +59,8 @@ inline Truth Make(const bouncecal::Scene& scene, const Options& o) {
     out.e.push_back(e);
     out.v_in.push_back(v);
     const double v_out = e * v;
-    const double interval = flight.FlightTime(v_out) + (o.contact_in_interval ? r.contact_time_s : 0.0);
+    const double interval =
+        flight.FlightTime(v_out) + (o.contact_in_interval ? r.contact_time_s : 0.0);
     if (r.stuck || interval < o.min_interval_s) break;
     t += interval;
     v = flight.ArrivalSpeed(v_out);

@@ -130,8 +130,8 @@ TEST(ParamFile, SchemaKeysAndTypes) {
   EXPECT_NEAR(j["e_of_v"].back()["v_m_s"].get<double>(), c.v_max_m_s, 1e-9);
   const json& fit = j.at("fit");
   for (const char* key : {"strategy", "rms_residual_s", "chi2_dof", "outcome", "iterations",
-                          "determined", "undetermined", "aic", "bic", "dof", "reason",
-                          "exit_code", "scatter_e", "scatter_e_sigma", "starts"}) {
+                          "determined", "undetermined", "aic", "bic", "dof", "reason", "exit_code",
+                          "scatter_e", "scatter_e_sigma", "starts"}) {
     EXPECT_TRUE(fit.contains(key)) << key;
   }
   EXPECT_EQ(fit.at("strategy"), "trajectory");

@@ -46,8 +46,8 @@ class RealCalibration : public ::testing::TestWithParam<std::string> {};
 TEST_P(RealCalibration, NumbersAreBelievable) {
   const std::string name = GetParam();
   if (!Present(name)) GTEST_SKIP() << "no " << Recording(name + ".wav") << " (folder absent)";
-  const auto r = RunCommand(BOUNCECAL_BINARY, "calibrate " + Recording(name + ".wav") + " --scene " +
-                                                  Recording(name + ".toml") +
+  const auto r = RunCommand(BOUNCECAL_BINARY, "calibrate " + Recording(name + ".wav") +
+                                                  " --scene " + Recording(name + ".toml") +
                                                   " --law hertz-viscoelastic --json");
   const auto j = nlohmann::json::parse(r.out);
   const auto& fit = j.at("fit");
@@ -80,15 +80,16 @@ TEST(RealCalibration, KnownDiagnosesFire) {
     GTEST_SKIP() << "folder absent";
   }
   const std::string ball = "pfe_bouncyball_h0.9m_stereo48k";
-  const auto sb = RunCommand(BOUNCECAL_BINARY, "calibrate " + Recording(ball + ".wav") + " --scene " +
-                                                   Recording(ball + ".toml") + " --json");
+  const auto sb =
+      RunCommand(BOUNCECAL_BINARY, "calibrate " + Recording(ball + ".wav") + " --scene " +
+                                       Recording(ball + ".toml") + " --json");
   const auto jb = nlohmann::json::parse(sb.out);
   EXPECT_TRUE(HasCode(jb, "irregular_bounce")) << jb.at("warnings");
   EXPECT_TRUE(HasCode(jb, "e_above_one")) << jb.at("warnings");
   // The ping-pong scene gives no drop; stating 0.2 m contradicts the first interval.
-  const auto pp = RunCommand(BOUNCECAL_BINARY, "analyze " + Recording("eeps_pingpong.wav") +
-                                                   " --scene " + Recording("eeps_pingpong.toml") +
-                                                   " --height 0.2 --json");
+  const auto pp =
+      RunCommand(BOUNCECAL_BINARY, "analyze " + Recording("eeps_pingpong.wav") + " --scene " +
+                                       Recording("eeps_pingpong.toml") + " --height 0.2 --json");
   ASSERT_EQ(pp.exit_code, 0) << pp.err;
   const auto jp = nlohmann::json::parse(pp.out);
   EXPECT_TRUE(HasCode(jp, "drop_height_inconsistent")) << jp.at("warnings");

@@ -89,8 +89,7 @@ TEST(ScatterModel, ZeroScatterGivesTheTimingOnlyGlsStep) {
   ASSERT_TRUE(ev.ok);
   // Normal equations solved directly: beta = (X^T C^-1 X)^-1 X^T C^-1 y.
   const Eigen::MatrixXd ci = c.ct.inverse();
-  const Eigen::VectorXd beta =
-      (c.x.transpose() * ci * c.x).ldlt().solve(c.x.transpose() * ci * y);
+  const Eigen::VectorXd beta = (c.x.transpose() * ci * c.x).ldlt().solve(c.x.transpose() * ci * y);
   EXPECT_NEAR(ev.step(0), beta(0), 1e-12);
   EXPECT_NEAR(ev.step(1), beta(1), 1e-12);
   const Eigen::VectorXd r = y - c.x * beta;
@@ -115,7 +114,8 @@ TEST(ScatterModel, CriterionIsTheRestrictedLikelihood) {
   const Eigen::MatrixXd info = c.x.transpose() * ci * c.x;
   const Eigen::VectorXd beta = info.ldlt().solve(c.x.transpose() * ci * y);
   const Eigen::VectorXd r = y - c.x * beta;
-  const double want = 0.5 * (std::log(cm.determinant()) + std::log(info.determinant()) + r.dot(ci * r));
+  const double want =
+      0.5 * (std::log(cm.determinant()) + std::log(info.determinant()) + r.dot(ci * r));
   EXPECT_NEAR(ScatterProblem(-y, c.x, c.ct).At(s).criterion, want, 1e-8);
   ScatterOptions ml;
   ml.reml = false;

@@ -380,12 +380,14 @@ TEST(SceneTest, DropHeightSigmaParsesValidatesAndRoundTrips) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(message("[drop]\nheight_m = 1\nheight_sigma_m = -0.1\n").find("d.toml:3: drop.height_sigma_m: must be >= 0"),
+  EXPECT_NE(message("[drop]\nheight_m = 1\nheight_sigma_m = -0.1\n")
+                .find("d.toml:3: drop.height_sigma_m: must be >= 0"),
             std::string::npos);
   // A sigma without its height (here: an impact speed instead) contradicts the scene.
   const std::string orphan = message("[drop]\nimpact_speed_m_s = 2\nheight_sigma_m = 0.01\n");
-  EXPECT_NE(orphan.find("drop.height_sigma_m: is the uncertainty of drop.height_m, which is not given"),
-            std::string::npos)
+  EXPECT_NE(
+      orphan.find("drop.height_sigma_m: is the uncertainty of drop.height_m, which is not given"),
+      std::string::npos)
       << orphan;
   Scene bad;
   bad.drop.height_sigma_m = std::nan("");

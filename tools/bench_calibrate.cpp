@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "../tests/oracle_truth.hpp"
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
@@ -34,7 +35,6 @@
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "bouncecal/synth/synth.hpp"
-#include "../tests/oracle_truth.hpp"
 
 using namespace bouncecal;
 
@@ -272,7 +272,7 @@ void SeedPaper() {
 // ---- 4. the scatter error model -------------------------------------------------------------
 
 struct ScatterCase {
-  Scene scene;       // hertz-viscoelastic, 1 cm steel ball from 0.5 m, A for e(1 m/s) = 0.85
+  Scene scene;  // hertz-viscoelastic, 1 cm steel ball from 0.5 m, A for e(1 m/s) = 0.85
   double a_true = 0.0;
 };
 
@@ -317,7 +317,7 @@ void ScatterTable(int seeds) {
         const Sequence seq =
             ScatterSequence(c, scatter, static_cast<std::uint64_t>(seed), 5e-6, traj);
         Scene start = c.scene;
-        start.law.parameters.erase("A");  // start from the law's default, not the truth
+        start.law.parameters.erase("A");        // start from the law's default, not the truth
         start.effects.contact_duration = traj;  // the kinematics take the contacts out
         CalibrationOptions o;
         o.strategy = st;
@@ -352,8 +352,8 @@ void ScatterTable(int seeds) {
       }
       std::printf("| %s | %.3f | %.4f | %.2f | %.2f (%+.2f) | %.2f | %.2f | %d | %d/%d | %.0f |\n",
                   FitStrategyName(st), scatter, s_sum / ok, std::sqrt(s_pull / ok),
-                  std::sqrt(a_pull / ok), a_bias / ok, std::sqrt(e_pull / std::max(n_e, 1)), chi / ok,
-                  bounces / ok, ok, seeds, 1e3 * time / seeds);
+                  std::sqrt(a_pull / ok), a_bias / ok, std::sqrt(e_pull / std::max(n_e, 1)),
+                  chi / ok, bounces / ok, ok, seeds, 1e3 * time / seeds);
     }
   }
 }

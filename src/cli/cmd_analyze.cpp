@@ -97,8 +97,8 @@ nlohmann::json SceneJson(const GivenScene& gs, const Analysis& a) {
   j["terminal_speed_m_s"] = Num(a.terminal_speed_m_s);
   const bool drop = gs.drop_given;
   j["drop_height_m"] = drop ? Opt(scene.drop.height_m) : nlohmann::json();
-  j["drop_height_sigma_m"] = drop && scene.drop.height_m ? nlohmann::json(a.height_sigma_m)
-                                                         : nlohmann::json();
+  j["drop_height_sigma_m"] =
+      drop && scene.drop.height_m ? nlohmann::json(a.height_sigma_m) : nlohmann::json();
   j["impact_speed_m_s"] = drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
   j["ball"] = {{"diameter_m", scene.ball.diameter_m},
                {"mass_kg", Num(scene.ball.Mass())},
@@ -233,11 +233,10 @@ void PrintCsv(const Analysis& an) {
        "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular\n";
   for (const Bounce& b : an.bounces) {
     o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
-      << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
-      << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
-      << "," << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta)
-      << "," << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << ","
-      << (b.irregular ? 1 : 0) << "\n";
+      << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s) << ","
+      << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e) << ","
+      << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta) << ","
+      << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << "," << (b.irregular ? 1 : 0) << "\n";
   }
   std::cout << o.str();
 }

@@ -190,8 +190,7 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     if (a.json) return JsonRow(a.files[i], c, e).dump();
     return a.files[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
-              : c->BriefReport() +
-                    (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
+              : c->BriefReport() + (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
   };
   // Lines come out in input order as soon as every earlier file is done.
   auto flush_ready = [&]() {
@@ -346,8 +345,8 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
                 << Num(r.delta_aic, 6) << "," << CsvField(r.adequate ? "" : c.reason) << "\n";
     }
   } else {
-    std::cout << AssumedText(AssumedValues(gs, true))
-              << "law comparison (" << FitStrategyName(opts.strategy)
+    std::cout << AssumedText(AssumedValues(gs, true)) << "law comparison ("
+              << FitStrategyName(opts.strategy)
               << " fit of every law, full convergence; adequate fits ranked by AIC, the others "
                  "listed with their outcome; e(v) at the lowest, middle and highest measured "
                  "speed)\n"
@@ -361,9 +360,10 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
   }
   std::cout << std::flush;
   if (!any) {
-    throw Error(ErrorCode::kFitFailed, "no contact law fits these recordings adequately" +
-                                           (rows.empty() ? "" : ": " + rows.front().fit.law +
-                                                                    ": " + rows.front().fit.reason));
+    throw Error(
+        ErrorCode::kFitFailed,
+        "no contact law fits these recordings adequately" +
+            (rows.empty() ? "" : ": " + rows.front().fit.law + ": " + rows.front().fit.reason));
   }
   if (!a.output.empty()) {
     WriteParamFile(a.output, ParamFileJson(rows.front().fit, prov, options_json),

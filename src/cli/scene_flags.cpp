@@ -121,7 +121,8 @@ Scene ResolveScene(const SceneFlags& flags) {
     throw Error(ErrorCode::kBadParameter, "--height-sigma " + Num(*flags.height_sigma_m) +
                                               " is the uncertainty of a drop height, but "
                                               "--impact-speed " +
-                                              Num(*flags.impact_speed_m_s) + " replaces the height");
+                                              Num(*flags.impact_speed_m_s) +
+                                              " replaces the height");
   }
   if (flags.height_m) {
     scene.drop.height_m = CheckPositive("--height", *flags.height_m);
@@ -226,9 +227,9 @@ GivenScene ResolveGivenScene(const SceneFlags& flags) {
   const Drop& d = gs.scene.drop;
   gs.drop_given = (d.height_m && (gs.Given("drop.height_m"))) ||
                   (d.impact_speed_m_s && gs.Given("drop.impact_speed_m_s"));
-  gs.ball_given = gs.Given("ball.diameter_m") &&
-                  (gs.Given("ball.mass_kg") || gs.Given("ball.density_kg_m3") ||
-                   gs.Given("ball.material"));
+  gs.ball_given =
+      gs.Given("ball.diameter_m") &&
+      (gs.Given("ball.mass_kg") || gs.Given("ball.density_kg_m3") || gs.Given("ball.material"));
   return gs;
 }
 
@@ -245,20 +246,24 @@ std::vector<Assumed> AssumedValues(const GivenScene& gs, bool for_calibration) {
       "contact time taken out of the intervals");
   const bool drag = s.effects.drag != DragModel::kNone;
   if (drag || s.effects.buoyancy) {
-    add("environment.air_density_kg_m3", Num(s.environment.air_density_kg_m3), "air (drag, buoyancy)");
+    add("environment.air_density_kg_m3", Num(s.environment.air_density_kg_m3),
+        "air (drag, buoyancy)");
   }
-  if (drag) add("environment.drag_coefficient", Num(s.environment.drag_coefficient), "smooth sphere");
+  if (drag)
+    add("environment.drag_coefficient", Num(s.environment.drag_coefficient), "smooth sphere");
   if (gs.drop_given && s.drop.height_m && !s.drop.height_sigma_m) {
     out.push_back({"drop.height_sigma_m", "0", "the drop height is taken as exact"});
   }
-  const bool needs_ball = for_calibration || drag || s.effects.buoyancy || s.effects.contact_duration;
+  const bool needs_ball =
+      for_calibration || drag || s.effects.buoyancy || s.effects.contact_duration;
   if (needs_ball && !gs.ball_given) {
     add("ball.diameter_m", Num(s.ball.diameter_m), "the ball (seed 002's steel ball)");
     add("ball.density_kg_m3", Num(s.ball.Density()), "the ball's density");
   }
   if (s.effects.contact_duration || for_calibration) {
     add("ball.material", s.ball.material, "elastic constants (Hertz stiffness, contact time)");
-    add("surface.material", s.surface.material, "elastic constants (Hertz stiffness, contact time)");
+    add("surface.material", s.surface.material,
+        "elastic constants (Hertz stiffness, contact time)");
   }
   if (for_calibration) {
     add("law.name", s.law.name, "the contact law fitted");
@@ -268,7 +273,8 @@ std::vector<Assumed> AssumedValues(const GivenScene& gs, bool for_calibration) {
 
 nlohmann::json AssumedJson(const std::vector<Assumed>& assumed) {
   nlohmann::json out = nlohmann::json::array();
-  for (const Assumed& a : assumed) out.push_back({{"key", a.key}, {"value", a.value}, {"note", a.note}});
+  for (const Assumed& a : assumed)
+    out.push_back({{"key", a.key}, {"value", a.value}, {"note", a.note}});
   return out;
 }
 

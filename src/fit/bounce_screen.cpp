@@ -44,7 +44,8 @@ struct SmoothCurve {
     const double x = std::log(u / u_ref);
     const double all[4] = {0.0, 1.0 / u, 1.0 / u_ref, 2.0 * x / u};
     double d = 0.0;
-    for (size_t j = 0; j < terms.size(); ++j) d += beta(static_cast<Eigen::Index>(j)) * all[terms[j]];
+    for (size_t j = 0; j < terms.size(); ++j)
+      d += beta(static_cast<Eigen::Index>(j)) * all[terms[j]];
     return d;
   }
 };
@@ -88,8 +89,8 @@ SmoothCurve FitCurve(const RestitutionData& data, std::vector<int> terms,
       slopes[static_cast<size_t>(k)] = c.Slope(data.points[static_cast<size_t>(k)].u_m_s);
     }
   }
-  const Eigen::MatrixXd cov = ct + c.scatter.sigma * c.scatter.sigma *
-                                       Eigen::MatrixXd::Identity(n, n);
+  const Eigen::MatrixXd cov =
+      ct + c.scatter.sigma * c.scatter.sigma * Eigen::MatrixXd::Identity(n, n);
   c.residual.resize(static_cast<size_t>(n));
   c.z.resize(static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) {
@@ -125,7 +126,8 @@ void CheckDropHeight(const Scene& scene, const AnalysisOptions& options, const A
   if (m < 3) return;
   // A quadratic trend in ln v when there are enough points, else a linear one.
   const RestitutionData local = later.Subset(keep);
-  const SmoothCurve trend = FitCurve(local, m >= 6 ? std::vector<int>{0, 1, 3} : std::vector<int>{0, 1}, sigma_s);
+  const SmoothCurve trend =
+      FitCurve(local, m >= 6 ? std::vector<int>{0, 1, 3} : std::vector<int>{0, 1}, sigma_s);
   if (!trend.scatter.ok) return;
   // The arrival speed u* the next bounces agree with: v_out,0 / u* = trend(u*) (a fixed point
   // started at the next bounce's speed, so the trend is only evaluated near its data, however
@@ -164,23 +166,25 @@ void CheckDropHeight(const Scene& scene, const AnalysisOptions& options, const A
   std::string stated = scene.drop.height_m ? Fmt("height %.4g m", *scene.drop.height_m)
                                            : Fmt("impact speed %.4g m/s", u0);
   std::string cause;
-  const double q = scene.drop.height_m && std::isfinite(h_fit) ? *scene.drop.height_m / h_fit
-                                                                : kNaN;
+  const double q =
+      scene.drop.height_m && std::isfinite(h_fit) ? *scene.drop.height_m / h_fit : kNaN;
   if (std::isfinite(q) && q > 50.0 && q < 200.0) {
     cause = "the height looks like centimetres (drop.height_m is in metres)";
   } else if (std::isfinite(q) && q > 500.0 && q < 2000.0) {
     cause = "the height looks like millimetres (drop.height_m is in metres)";
   } else if (z > 0.0) {
-    cause = "the first e is too low: the recording may start after the drop's first impact (the "
-            "first heard impact is then a later bounce), or the stated drop is too high";
+    cause =
+        "the first e is too low: the recording may start after the drop's first impact (the "
+        "first heard impact is then a later bounce), or the stated drop is too high";
   } else {
-    cause = "the first e is too high: the ball was released higher than stated (the height is "
-            "that of the ball's bottom above the plate), or the stated drop is too low";
+    cause =
+        "the first e is too high: the ball was released higher than stated (the height is "
+        "that of the ball's bottom above the plate), or the stated drop is too low";
   }
   out->warnings.push_back(
       {"drop_height_inconsistent",
-       "impact 0: e = " + Fmt("%.4f", b0.e) + " from the stated " + stated + Fmt(" (%.3g m/s)", u0) +
-           ", but the next bounces' trend (e = " + Fmt("%.3f", pred) +
+       "impact 0: e = " + Fmt("%.4f", b0.e) + " from the stated " + stated +
+           Fmt(" (%.3g m/s)", u0) + ", but the next bounces' trend (e = " + Fmt("%.3f", pred) +
            Fmt(") agrees with an arrival at %.3g +- %.2g m/s", u, std::sqrt(var_u)) +
            Fmt(" (%.1f sigma)", std::abs(z)) +
            (std::isfinite(h_fit) ? Fmt(", a drop of %.3g m", h_fit) : "") + ": " + cause +
@@ -224,8 +228,7 @@ void ScreenBounces(const Scene& scene, const AnalysisOptions& options, Analysis*
     b.irregular = true;
     a->warnings.push_back(
         {"irregular_bounce",
-         "impact " + std::to_string(p.bounce) +
-             Fmt(": e = %.4f is %.1f sigma ", p.e, std::abs(z)) +
+         "impact " + std::to_string(p.bounce) + Fmt(": e = %.4f is %.1f sigma ", p.e, std::abs(z)) +
              (z > 0 ? "below" : "above") +
              Fmt(" the smooth e(v) of the other bounces (%.4f, scatter %.2g)",
                  p.e + curve.residual[static_cast<size_t>(k)], curve.scatter.sigma) +

@@ -85,9 +85,9 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
     const double tol = 1e-8 * std::max(std::abs(f.value), su.typical[i]);
     f.at_bound = f.value <= f.lower + tol || f.value >= f.upper - tol;
   }
-  c->analytic_jacobian = fp.options.derivatives == DerivativeMode::kAuto && su.has_gradient &&
-                         (!traj || (!fp.scene.effects.contact_duration &&
-                                    !fp.scene.effects.surface_compliance));
+  c->analytic_jacobian =
+      fp.options.derivatives == DerivativeMode::kAuto && su.has_gradient &&
+      (!traj || (!fp.scene.effects.contact_duration && !fp.scene.effects.surface_compliance));
   c->e_of_v = u.e_of_v;
   c->v_min_m_s = u.v_min_m_s;
   c->v_max_m_s = u.v_max_m_s;
@@ -116,7 +116,8 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
   for (size_t r = 0; r < fp.recordings.size(); ++r) {
     RecordingFit rf;
     rf.name = fp.recordings[r].name;
-    rf.impact_speed_m_s = rf.impact_speed_sigma_m_s = rf.time_origin_s = rf.time_origin_sigma_s = kNaN;
+    rf.impact_speed_m_s = rf.impact_speed_sigma_m_s = rf.time_origin_s = rf.time_origin_sigma_s =
+        kNaN;
     if (traj) {
       rf.impacts = static_cast<int>(fp.recordings[r].sequence.impacts.size());
       rf.simulated_impacts = s.simulated_impacts[r];
@@ -125,8 +126,11 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
       rf.impact_speed_fixed = !s.v0_free[r];
       rf.time_origin_s = s.t0[r];
       rf.time_origin_sigma_s = s.t0_sigma[r];
-      for (int q = 0; q < rf.impacts; ++q) rf.residuals.push_back(s.residuals(static_cast<Eigen::Index>(row++)));
-      if (fp.recordings[r].drop_used && s.v0_free[r] && fp.recordings[r].analysis.height_sigma_m > 0.0) ++row;
+      for (int q = 0; q < rf.impacts; ++q)
+        rf.residuals.push_back(s.residuals(static_cast<Eigen::Index>(row++)));
+      if (fp.recordings[r].drop_used && s.v0_free[r] &&
+          fp.recordings[r].analysis.height_sigma_m > 0.0)
+        ++row;
     } else {
       for (int q = 0; q < fp.data.size(); ++q) {
         if (fp.data.points[static_cast<size_t>(q)].recording != static_cast<int>(r)) continue;
@@ -138,7 +142,8 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
     for (double x : rf.residuals) s2 += x * x;
     ss += s2;
     nres += static_cast<int>(rf.residuals.size());
-    rf.rms_residual = rf.residuals.empty() ? 0.0 : std::sqrt(s2 / static_cast<double>(rf.residuals.size()));
+    rf.rms_residual =
+        rf.residuals.empty() ? 0.0 : std::sqrt(s2 / static_cast<double>(rf.residuals.size()));
     c->recordings.push_back(rf);
   }
   c->rms_residual = nres ? std::sqrt(ss / nres) : 0.0;
@@ -176,7 +181,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
                       const CalibrationOptions& options) {
   const auto t_start = std::chrono::steady_clock::now();
   std::atomic<long> simulations{0};
-  calib::FitProblem fp = calib::SetUpProblem(recordings, scene, options);     // stage 1
+  calib::FitProblem fp = calib::SetUpProblem(recordings, scene, options);  // stage 1
   if (!fp.not_determinable.empty()) {
     return Unfitted(fp, FitOutcome::kNotDeterminable, fp.not_determinable);
   }
@@ -202,10 +207,11 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
     calib::StartsReport again;
     s = calib::SolveFromStarts(fp, {fp.setup.start}, undetermined, &again, &simulations);
     report.reached_best = std::min(report.reached_best, report.tried);
-  } else if (s.ok && std::find(undetermined.begin(), undetermined.end(), false) == undetermined.end()) {
+  } else if (s.ok &&
+             std::find(undetermined.begin(), undetermined.end(), false) == undetermined.end()) {
     s.held = undetermined;  // nothing determined: report every free parameter as such
   }
-  calib::Uncertainty u = calib::EstimateUncertainty(fp, s, &simulations);        // stage 4
+  calib::Uncertainty u = calib::EstimateUncertainty(fp, s, &simulations);  // stage 4
   u.undetermined = undetermined;
   u.undetermined_why = why;
   if (s.ok) {
@@ -213,7 +219,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
       if (undetermined[j]) u.sigma[static_cast<size_t>(fp.setup.free[j])] = kNaN;
     }
   }
-  const calib::Diagnosis d = calib::Diagnose(fp, s, u, report);                  // stage 5
+  const calib::Diagnosis d = calib::Diagnose(fp, s, u, report);  // stage 5
   Calibration c = Skeleton(fp, s.ok ? s.p : fp.setup.start);
   if (s.ok) {
     Assemble(fp, s, u, d, report, &c);

@@ -63,7 +63,7 @@ double RelativeStep(double rtol);
 struct RecordingData {
   std::string name;
   Sequence sequence;
-  Analysis analysis;      // kinematics with the screen (scatter, irregular, drop)
+  Analysis analysis;       // kinematics with the screen (scatter, irregular, drop)
   bool drop_used = false;  // the first impact's speed comes from the scene's drop (consistent)
 };
 
@@ -74,9 +74,9 @@ struct FitProblem {
   double g = 9.8;  // effective gravity (during contacts too)
   SimulatorOptions sim;
   std::vector<RecordingData> recordings;
-  RestitutionData data;            // the per-bounce points the fit uses
-  std::vector<Warning> warnings;   // from the analyses
-  std::string not_determinable;    // set when the data cannot determine the free parameters
+  RestitutionData data;                   // the per-bounce points the fit uses
+  std::vector<Warning> warnings;          // from the analyses
+  std::string not_determinable;           // set when the data cannot determine the free parameters
   double e_median = 0.0, v_median = 0.0;  // of the points, for seeding
   double scatter_start = 0.0;             // sigma_s from the screens (start of the fit)
   std::string seed_note;                  // how the start values were chosen
@@ -109,8 +109,8 @@ struct Solution {
   Eigen::VectorXd residuals;  // model - measured (e for restitution, s for trajectory)
   Eigen::MatrixXd jacobian;   // d residuals / d u (scaled free parameters, then nuisances)
   Eigen::MatrixXd timing_cov;
-  Eigen::MatrixXd design;     // scatter design G (empty: identity)
-  double cost = 0.0;          // 1/2 chi2 at the start's sigma_s (compares starts)
+  Eigen::MatrixXd design;  // scatter design G (empty: identity)
+  double cost = 0.0;       // 1/2 chi2 at the start's sigma_s (compares starts)
   int iterations = 0;
   bool iteration_limit = false;
   std::string limit_note;
@@ -123,7 +123,7 @@ struct Solution {
 
 struct StartsReport {
   int tried = 0;
-  int reached_best = 0;  // starts ending within the best's sigma
+  int reached_best = 0;   // starts ending within the best's sigma
   bool disagree = false;  // another start ends elsewhere with an equally good fit
   std::string note;
 };
@@ -147,11 +147,11 @@ Solution SolveFromStarts(const FitProblem& problem, const std::vector<std::vecto
 // ---- Stage 4: uncertainty -------------------------------------------------------------------
 
 struct Uncertainty {
-  std::vector<bool> undetermined;           // per free parameter
+  std::vector<bool> undetermined;             // per free parameter
   std::vector<std::string> undetermined_why;  // per free parameter (empty when determined)
-  std::vector<bool> held_determinable;      // per full index: a held parameter the data could fit
-  Eigen::MatrixXd covariance;               // of the free parameters, in their own units
-  std::vector<double> sigma;                // per full index (NaN when held/undetermined)
+  std::vector<bool> held_determinable;        // per full index: a held parameter the data could fit
+  Eigen::MatrixXd covariance;                 // of the free parameters, in their own units
+  std::vector<double> sigma;                  // per full index (NaN when held/undetermined)
   std::vector<EOfVPoint> e_of_v;
   double v_min_m_s = 0.0, v_max_m_s = 0.0;
 };

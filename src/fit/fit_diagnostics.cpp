@@ -99,7 +99,8 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
   const bool none_determined =
       std::find(u.undetermined.begin(), u.undetermined.end(), false) == u.undetermined.end();
   for (size_t j = 0; j < su.free.size(); ++j) {
-    if (u.undetermined[j] && (none_determined || su.specs()[static_cast<size_t>(su.free[j])].damping)) {
+    if (u.undetermined[j] &&
+        (none_determined || su.specs()[static_cast<size_t>(su.free[j])].damping)) {
       why.push_back(u.undetermined_why[j]);
     }
   }
@@ -110,8 +111,9 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
   }
   if (s.iteration_limit) {
     set(FitOutcome::kIterationLimit, s.limit_note);
-    d.warnings.push_back({"iteration_limit", s.limit_note + ": the parameters are not at an optimum; "
-                                             "raise max_iterations or check the start values",
+    d.warnings.push_back({"iteration_limit",
+                          s.limit_note + ": the parameters are not at an optimum; "
+                                         "raise max_iterations or check the start values",
                           -1});
   }
   // Goodness of fit.
@@ -134,10 +136,12 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
       const double z = (s.scatter.chi2 - dof) / std::sqrt(2.0 * dof);
       const double pv = 0.5 * std::erfc(z / std::sqrt(2.0));
       if (pv < o.poor_fit_p_value) {
-        set(FitOutcome::kPoorFit,
-            "chi2/dof = " + Fmt(s.scatter.chi2 / dof, 3) + " of the impact times with the scatter "
-            "sigma_s = " + Fmt(s.scatter.sigma, 2) + " of the restitution fit (p = " + Fmt(pv, 2) +
-            "): the simulated trajectory does not follow the recording");
+        set(FitOutcome::kPoorFit, "chi2/dof = " + Fmt(s.scatter.chi2 / dof, 3) +
+                                      " of the impact times with the scatter "
+                                      "sigma_s = " +
+                                      Fmt(s.scatter.sigma, 2) +
+                                      " of the restitution fit (p = " + Fmt(pv, 2) +
+                                      "): the simulated trajectory does not follow the recording");
       }
     }
   }
@@ -155,18 +159,19 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
     const ParameterSpec& sp = su.specs()[i];
     const double tol = 1e-8 * std::max(std::abs(s.p[i]), su.typical[i]);
     if (s.p[i] <= sp.lower + tol || s.p[i] >= sp.upper - tol) {
-      d.warnings.push_back({"fit_at_bound", sp.name + " = " + Fmt(s.p[i], 4) + " " + sp.unit +
-                                                " stopped at its bound [" + Fmt(sp.lower, 3) +
-                                                ", " + Fmt(sp.upper, 3) +
-                                                "]: the data push it outside the law's physical "
-                                                "range; its sigma is one-sided at best",
+      d.warnings.push_back({"fit_at_bound",
+                            sp.name + " = " + Fmt(s.p[i], 4) + " " + sp.unit +
+                                " stopped at its bound [" + Fmt(sp.lower, 3) + ", " +
+                                Fmt(sp.upper, 3) +
+                                "]: the data push it outside the law's physical "
+                                "range; its sigma is one-sided at best",
                             -1});
     }
   }
   if (starts.disagree) {
-    d.warnings.push_back({"starts_disagree", "of " + std::to_string(starts.tried) +
-                                                 " start points, " + starts.note +
-                                                 ": the data allow more than one answer",
+    d.warnings.push_back({"starts_disagree",
+                          "of " + std::to_string(starts.tried) + " start points, " + starts.note +
+                              ": the data allow more than one answer",
                           -1});
   }
   if (d.reason.empty()) d.reason = "converged";

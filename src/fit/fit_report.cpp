@@ -149,8 +149,8 @@ std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
     for (const auto& p : c.parameters) {
       if (!p.fixed) fitted.push_back(p.name + "=" + Fmt(p.value, 4));
     }
-    os << Join(fitted, " ") << " | " << Fmt(c.scatter_e, 2) << " | " << Fmt(c.chi2_dof, 3)
-       << " | " << Fmt(c.aic, 6) << " | " << Fmt(r.delta_aic, 4) << " |";
+    os << Join(fitted, " ") << " | " << Fmt(c.scatter_e, 2) << " | " << Fmt(c.chi2_dof, 3) << " | "
+       << Fmt(c.aic, 6) << " | " << Fmt(r.delta_aic, 4) << " |";
     // e(v) by interpolating the fitted table (log-linear in v), clamped to its range.
     for (double v : speeds_m_s) {
       double e = std::nan("");

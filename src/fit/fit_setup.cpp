@@ -34,7 +34,8 @@ double Median(std::vector<double> v) {
 
 void ClampIntoBounds(const LawSetup& s, std::vector<double>* p) {
   const auto& specs = s.specs();
-  for (size_t i = 0; i < p->size(); ++i) (*p)[i] = std::clamp((*p)[i], specs[i].lower, specs[i].upper);
+  for (size_t i = 0; i < p->size(); ++i)
+    (*p)[i] = std::clamp((*p)[i], specs[i].lower, specs[i].upper);
 }
 
 std::vector<int> FreeDamping(const LawSetup& s) {
@@ -59,8 +60,8 @@ std::optional<std::vector<double>> InverseMapStart(const LawSetup& s, double e, 
 
 // A log-spaced scan of a single free damping parameter for e(v) = e (every registered law's e
 // falls as its damping grows, so the closest point brackets the answer).
-std::optional<std::vector<double>> ScanStart(const LawSetup& s, double e_target, double v,
-                                             double g, const SimulatorOptions& sim,
+std::optional<std::vector<double>> ScanStart(const LawSetup& s, double e_target, double v, double g,
+                                             const SimulatorOptions& sim,
                                              std::atomic<long>* simulations) {
   const std::vector<int> damp = FreeDamping(s);
   if (damp.size() != 1) return std::nullopt;
@@ -82,7 +83,8 @@ std::optional<std::vector<double>> ScanStart(const LawSetup& s, double e_target,
     } catch (const Error&) {
       continue;
     }
-    if (std::isfinite(e) && std::abs(e - e_target) < best_err) best_err = std::abs(e - e_target), best = q;
+    if (std::isfinite(e) && std::abs(e - e_target) < best_err)
+      best_err = std::abs(e - e_target), best = q;
   }
   if (best.empty()) return std::nullopt;
   return best;
@@ -108,11 +110,11 @@ void CountData(FitProblem* fp, const std::vector<CalibrationInput>& recordings) 
     for (const auto& r : recordings) impacts += static_cast<int>(r.sequence.impacts.size());
     const int need = nfree + 2 * static_cast<int>(recordings.size()) + 1;
     if (impacts < need) {
-      fp->not_determinable = "the data cannot determine the parameters: " +
-                             std::to_string(impacts) + " impact times for " +
-                             std::to_string(need - 1) +
-                             " free parameters (the law's, and the first impact speed and time "
-                             "origin of each recording)";
+      fp->not_determinable =
+          "the data cannot determine the parameters: " + std::to_string(impacts) +
+          " impact times for " + std::to_string(need - 1) +
+          " free parameters (the law's, and the first impact speed and time "
+          "origin of each recording)";
     }
   }
 }
@@ -157,7 +159,8 @@ LawSetup MakeLawSetup(const Scene& scene, const CalibrationOptions& options) {
     const auto& sp = specs[i];
     const bool freed = listed(options.free_parameters, sp.name);
     const bool held = listed(options.fixed_parameters, sp.name);
-    if ((sp.damping || freed) && !held && sp.upper > sp.lower) s.free.push_back(static_cast<int>(i));
+    if ((sp.damping || freed) && !held && sp.upper > sp.lower)
+      s.free.push_back(static_cast<int>(i));
     double typ = std::max(std::abs(s.start[i]), std::abs(sp.default_value));
     // Both zero (a damping coefficient defaulting to 0): one unit, or half the upper bound
     // when that is below one. The seeded start refines it.

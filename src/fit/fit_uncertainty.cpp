@@ -62,7 +62,8 @@ std::vector<bool> NullOrLoose(const Eigen::MatrixXd& js, double rel_sigma_max,
     const Eigen::VectorXd v = svd.matrixV().col(i);
     if (i >= sv.size() || !(smax > 0.0) || sv(i) <= kNullSpaceRatio * smax) {
       for (Eigen::Index j = 0; j < n; ++j) {
-        if (std::abs(v(j)) > 0.1) (*in_null)[static_cast<size_t>(j)] = bad[static_cast<size_t>(j)] = true;
+        if (std::abs(v(j)) > 0.1)
+          (*in_null)[static_cast<size_t>(j)] = bad[static_cast<size_t>(j)] = true;
       }
     } else {
       cov += v * v.transpose() / (sv(i) * sv(i));
@@ -112,7 +113,8 @@ Solution SolveFromStarts(const FitProblem& fp, const std::vector<std::vector<dou
   // The restitution fit from every start at the screen's sigma_s, then the best alternated.
   std::vector<Solution> trials;
   for (const auto& st : starts) {
-    trials.push_back(SolveRestitution(fp, st, held, fp.scatter_start, false, sims, &starts.front()));
+    trials.push_back(
+        SolveRestitution(fp, st, held, fp.scatter_start, false, sims, &starts.front()));
   }
   auto best_of = [](const std::vector<Solution>& v) {
     int b = -1;
@@ -123,14 +125,16 @@ Solution SolveFromStarts(const FitProblem& fp, const std::vector<std::vector<dou
   };
   int b = best_of(trials);
   if (b < 0) return trials.front();
-  Solution best = SolveRestitution(fp, trials[static_cast<size_t>(b)].p, held, fp.scatter_start, true, sims);
+  Solution best =
+      SolveRestitution(fp, trials[static_cast<size_t>(b)].p, held, fp.scatter_start, true, sims);
   if (fp.options.strategy == FitStrategy::kTrajectory && best.ok) {
     // The trajectory from the restitution optimum and the same starts, at its sigma_s.
     std::vector<std::vector<double>> tstarts = {best.p};
     for (const auto& st : starts) tstarts.push_back(st);
     tstarts.resize(std::min<size_t>(tstarts.size(), static_cast<size_t>(fp.options.max_starts)));
     std::vector<Solution> ttrials;
-    for (const auto& st : tstarts) ttrials.push_back(SolveTrajectory(fp, st, held, best.scatter.sigma, sims));
+    for (const auto& st : tstarts)
+      ttrials.push_back(SolveTrajectory(fp, st, held, best.scatter.sigma, sims));
     const int tb = best_of(ttrials);
     if (tb < 0) return ttrials.front();
     Solution t = ttrials[static_cast<size_t>(tb)];
@@ -155,7 +159,10 @@ Solution SolveFromStarts(const FitProblem& fp, const std::vector<std::vector<dou
       for (size_t j = 0; j < active.size(); ++j) {
         const size_t a = static_cast<size_t>(active[j]);
         const size_t i = static_cast<size_t>(fp.setup.free[a]);
-        const double sig = std::sqrt(std::max(best.scatter.covariance(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)), 0.0)) * fp.setup.scale[a];
+        const double sig = std::sqrt(std::max(best.scatter.covariance(static_cast<Eigen::Index>(j),
+                                                                      static_cast<Eigen::Index>(j)),
+                                              0.0)) *
+                           fp.setup.scale[a];
         if (sig > 0.0) d = std::max(d, std::abs(tr.p[i] - ref.p[i]) / sig);
       }
       if (d <= 1.0) ++report->reached_best;
@@ -191,14 +198,16 @@ std::vector<bool> FindUndetermined(const Solution& s, const FitProblem& fp,
   for (size_t j = 0; j < cols.size(); ++j) cols[j] = j;
   while (!cols.empty()) {
     Eigen::MatrixXd js(js_all.rows(), static_cast<Eigen::Index>(cols.size()));
-    for (size_t c = 0; c < cols.size(); ++c) js.col(static_cast<Eigen::Index>(c)) = js_all.col(static_cast<Eigen::Index>(cols[c]));
+    for (size_t c = 0; c < cols.size(); ++c)
+      js.col(static_cast<Eigen::Index>(c)) = js_all.col(static_cast<Eigen::Index>(cols[c]));
     std::vector<double> rel;
     std::vector<bool> null;
     const auto bad = NullOrLoose(js, fp.options.undetermined_relative_sigma, &rel, &null);
     std::vector<size_t> drop;
     for (size_t c = 0; c < cols.size(); ++c) {
       const size_t a = static_cast<size_t>(active[cols[c]]);
-      if (bad[c] && !fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].damping) drop.push_back(c);
+      if (bad[c] && !fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].damping)
+        drop.push_back(c);
     }
     const bool only_freed = !drop.empty();
     if (!only_freed) {
@@ -210,8 +219,9 @@ std::vector<bool> FindUndetermined(const Solution& s, const FitProblem& fp,
       const size_t a = static_cast<size_t>(active[cols[c]]);
       const std::string name = fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].name;
       out[a] = true;
-      (*why)[a] = null[c] ? name + ": the fitted quantities do not change with it (or only "
-                                   "together with another parameter) at the measured speeds"
+      (*why)[a] = null[c] ? name +
+                                ": the fitted quantities do not change with it (or only "
+                                "together with another parameter) at the measured speeds"
                           : name + ": its relative sigma " + Fmt(rel[c], 2) + " exceeds " +
                                 Fmt(fp.options.undetermined_relative_sigma, 2);
     }
@@ -239,10 +249,12 @@ Uncertainty EstimateUncertainty(const FitProblem& fp, const Solution& s, std::at
   u.covariance = Eigen::MatrixXd::Zero(na, na);
   for (Eigen::Index a = 0; a < na; ++a) {
     for (Eigen::Index b = 0; b < na; ++b) {
-      u.covariance(a, b) = s.scatter.covariance(a, b) * su.scale[static_cast<size_t>(active[static_cast<size_t>(a)])] *
+      u.covariance(a, b) = s.scatter.covariance(a, b) *
+                           su.scale[static_cast<size_t>(active[static_cast<size_t>(a)])] *
                            su.scale[static_cast<size_t>(active[static_cast<size_t>(b)])];
     }
-    u.sigma[static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])])] = std::sqrt(std::max(u.covariance(a, a), 0.0));
+    u.sigma[static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])])] =
+        std::sqrt(std::max(u.covariance(a, a), 0.0));
   }
   // Held law parameters: would the data determine each one if it alone were freed? Tested on
   // the restitution points (their sigmas and the scatter, correlations left out), for both
@@ -261,7 +273,8 @@ Uncertainty EstimateUncertainty(const FitProblem& fp, const Solution& s, std::at
     if (std::find(su.free.begin(), su.free.end(), static_cast<int>(i)) != su.free.end()) continue;
     Eigen::MatrixXd cols(nd, na + 1);
     for (Eigen::Index a = 0; a < na; ++a) {
-      cols.col(a) = rel_column(static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])]));
+      cols.col(a) = rel_column(
+          static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])]));
     }
     cols.col(na) = rel_column(i);
     std::vector<double> rel;
@@ -292,7 +305,8 @@ Uncertainty EstimateUncertainty(const FitProblem& fp, const Solution& s, std::at
       pt.e = ModelRestitution(su, s.p, pt.v_m_s, fp.g, fp.sim, sims);
       Eigen::VectorXd grad(na);
       for (Eigen::Index a = 0; a < na; ++a) {
-        const size_t i = static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])]);
+        const size_t i =
+            static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])]);
         const ParameterSpec& sp = su.specs()[i];
         const double x = s.p[i], h = rel * std::max(std::abs(x), su.typical[i]);
         std::vector<double> qh = s.p, ql = s.p;

@@ -61,8 +61,8 @@ bool AnalysisOptions::IsValid(std::string* error) const {
     return fail("drop_z_max: must be finite and > 0 (got " + Fmt("%g", drop_z_max) + ")");
   }
   if (!(drag_effect_sigmas > 0.0) || !std::isfinite(drag_effect_sigmas)) {
-    return fail("drag_effect_sigmas: must be finite and > 0 (got " +
-                Fmt("%g", drag_effect_sigmas) + ")");
+    return fail("drag_effect_sigmas: must be finite and > 0 (got " + Fmt("%g", drag_effect_sigmas) +
+                ")");
   }
   return true;
 }

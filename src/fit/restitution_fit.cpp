@@ -16,6 +16,7 @@
 
 #include "bouncecal/core/error.hpp"
 #include "fit/calibrate_stages.hpp"
+#include "fit/solver_options.hpp"
 
 namespace bouncecal::calib {
 namespace {
@@ -107,7 +108,8 @@ class Spline {
       *slope = (y_[i] - y_[i - 1]) / h - (3 * a * a - 1) / 6 * h * m_[i - 1] +
                (3 * b * b - 1) / 6 * h * m_[i];
     }
-    return a * y_[i - 1] + b * y_[i] + ((a * a * a - a) * m_[i - 1] + (b * b * b - b) * m_[i]) * h * h / 6;
+    return a * y_[i - 1] + b * y_[i] +
+           ((a * a * a - a) * m_[i - 1] + (b * b * b - b) * m_[i]) * h * h / 6;
   }
 
  private:
@@ -128,7 +130,8 @@ std::vector<double> GridSpeeds(const FitProblem& fp) {
   double lo = std::numeric_limits<double>::max(), hi = 0.0;
   for (const auto& pt : fp.data.points) lo = std::min(lo, pt.u_m_s), hi = std::max(hi, pt.u_m_s);
   std::vector<double> g;
-  for (int i = 0; i < kGridNodes; ++i) g.push_back(lo * std::pow(hi / lo, i / double(kGridNodes - 1)));
+  for (int i = 0; i < kGridNodes; ++i)
+    g.push_back(lo * std::pow(hi / lo, i / double(kGridNodes - 1)));
   return g;
 }
 
@@ -207,8 +210,8 @@ std::vector<double> GravityOffsets(const FitProblem& fp, const std::vector<doubl
       const auto closed = fp.setup.law->Restitution(p, fp.setup.body, u);
       if (!closed) continue;
       if (sims) ++*sims;
-      out[k] = SimulateContact(*fp.setup.law, p, fp.setup.body, u, fp.g, fp.sim).restitution -
-               *closed;
+      out[k] =
+          SimulateContact(*fp.setup.law, p, fp.setup.body, u, fp.g, fp.sim).restitution - *closed;
     } catch (const Error&) {
       out[k] = 0.0;
     }
@@ -247,7 +250,8 @@ class RestitutionCost final : public ceres::CostFunction {
     if (!ModelValues(fp_, p, active_, &e, want ? &jac : nullptr, sims_)) return false;
     const int n = fp_.data.size();
     Eigen::VectorXd r(n);
-    for (int k = 0; k < n; ++k) r(k) = e(k) + offsets_(k) - fp_.data.points[static_cast<size_t>(k)].e;
+    for (int k = 0; k < n; ++k)
+      r(k) = e(k) + offsets_(k) - fp_.data.points[static_cast<size_t>(k)].e;
     const auto tri = l_.triangularView<Eigen::Lower>();
     Eigen::Map<Eigen::VectorXd>(residuals, n) = tri.solve(r);
     if (want) {
@@ -286,27 +290,14 @@ bool SolveTheta(const FitProblem& fp, const std::vector<int>& active, const Eige
                 std::atomic<long>* sims) {
   const LawSetup& s = fp.setup;
   std::vector<double> u;
-  for (int a : active) u.push_back((*p)[static_cast<size_t>(s.free[static_cast<size_t>(a)])] /
-                                   s.scale[static_cast<size_t>(a)]);
+  for (int a : active)
+    u.push_back((*p)[static_cast<size_t>(s.free[static_cast<size_t>(a)])] /
+                s.scale[static_cast<size_t>(a)]);
   ceres::Problem problem;
   problem.AddResidualBlock(new RestitutionCost(fp, *p, active, off, l, sims), MakeLoss(fp.options),
                            u.data());
-  for (size_t j = 0; j < active.size(); ++j) {
-    const size_t a = static_cast<size_t>(active[j]);
-    const ParameterSpec& sp = s.specs()[static_cast<size_t>(s.free[a])];
-    if (std::isfinite(sp.lower)) problem.SetParameterLowerBound(u.data(), static_cast<int>(j), sp.lower / s.scale[a]);
-    if (std::isfinite(sp.upper)) problem.SetParameterUpperBound(u.data(), static_cast<int>(j), sp.upper / s.scale[a]);
-  }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = fp.options.max_iterations;
-  // Relative cost change and step 1e-10: far below any reported sigma, above the noise of
-  // differenced simulations (which otherwise keeps LM crawling).
-  so.function_tolerance = 1e-10;
-  so.parameter_tolerance = 1e-10;
-  so.gradient_tolerance = 1e-12;
-  so.num_threads = 1;
-  so.logging_type = ceres::SILENT;
+  SetLawBounds(s, active, u.data(), &problem);
+  const ceres::Solver::Options so = SolverOptions(fp.options);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   sol->iterations += static_cast<int>(summary.iterations.size());
@@ -316,8 +307,9 @@ bool SolveTheta(const FitProblem& fp, const std::vector<int>& active, const Eige
   }
   if (summary.termination_type == ceres::NO_CONVERGENCE) {
     sol->iteration_limit = true;
-    sol->limit_note = "the solver reached max_iterations = " +
-                      std::to_string(fp.options.max_iterations) + " before converging";
+    sol->limit_note =
+        "the solver reached max_iterations = " + std::to_string(fp.options.max_iterations) +
+        " before converging";
   } else {
     sol->iteration_limit = false;
   }

@@ -26,7 +26,8 @@ std::string LengthUnits(double v, double lo, double hi, bool cm_first) {
   std::string out;
   const std::pair<const char*, double> mm{"millimetres", 1e-3}, cm{"centimetres", 1e-2};
   for (const auto& [name, f] : cm_first ? std::vector{cm, mm} : std::vector{mm, cm}) {
-    if (v * f >= lo && v * f <= hi) out += (out.empty() ? "" : " or ") + std::string(name) + Fmt(" (%g m)", v * f);
+    if (v * f >= lo && v * f <= hi)
+      out += (out.empty() ? "" : " or ") + std::string(name) + Fmt(" (%g m)", v * f);
   }
   return out;
 }
@@ -37,19 +38,22 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
   std::vector<Warning> out;
   const double d = scene.ball.diameter_m;
   if (d > kMaxDiameterM || d < kMinDiameterM) {
-    const std::string unit = d > kMaxDiameterM ? LengthUnits(d, kMinDiameterM, kMaxDiameterM, false) : "";
-    out.push_back({"units_suspect",
-                   Fmt("ball.diameter_m = %g m is outside a ball's 0.1 mm .. 1 m", d) +
-                       (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
-                   -1});
+    const std::string unit =
+        d > kMaxDiameterM ? LengthUnits(d, kMinDiameterM, kMaxDiameterM, false) : "";
+    out.push_back(
+        {"units_suspect",
+         Fmt("ball.diameter_m = %g m is outside a ball's 0.1 mm .. 1 m", d) +
+             (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
+         -1});
   }
   if (drop_used && scene.drop.height_m && *scene.drop.height_m > kMaxHeightM) {
     const double h = *scene.drop.height_m;
     const std::string unit = LengthUnits(h, 0.0, kMaxHeightM, true);
-    out.push_back({"units_suspect",
-                   Fmt("drop.height_m = %g m is higher than a drop experiment (50 m)", h) +
-                       (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
-                   -1});
+    out.push_back(
+        {"units_suspect",
+         Fmt("drop.height_m = %g m is higher than a drop experiment (50 m)", h) +
+             (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
+         -1});
   }
   const double rho = scene.ball.Density();
   if (std::isfinite(rho) && (rho < kMinDensity || rho > kMaxDensity)) {

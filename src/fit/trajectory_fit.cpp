@@ -17,6 +17,7 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/physics/flight.hpp"
 #include "fit/calibrate_stages.hpp"
+#include "fit/solver_options.hpp"
 
 namespace bouncecal::calib {
 namespace {
@@ -172,7 +173,8 @@ class TrajectoryModel {
       auto hi = SimulateTimes(ph, v0h, sims);
       auto lo = SimulateTimes(pl, v0l, sims);
       if (!hi || !lo) return false;
-      for (size_t k = 0; k < n; ++k) pt->jac[k * (na + 1) + col] = (hi->times_s[k] - lo->times_s[k]) / dx;
+      for (size_t k = 0; k < n; ++k)
+        pt->jac[k * (na + 1) + col] = (hi->times_s[k] - lo->times_s[k]) / dx;
       return true;
     };
     for (size_t j = 0; j < na; ++j) {
@@ -217,9 +219,10 @@ class TrajectoryModel {
       if (!el || !eh) return false;
       const double de_du = (*eh - *el) / (2 * hu);
       for (size_t j = 0; j <= na; ++j) {
-        const double dp = j < na ? u * de_dp[static_cast<size_t>(su.free[static_cast<size_t>(active_[j])])] *
-                                       su.scale[static_cast<size_t>(active_[j])]
-                                 : 0.0;
+        const double dp =
+            j < na ? u * de_dp[static_cast<size_t>(su.free[static_cast<size_t>(active_[j])])] *
+                         su.scale[static_cast<size_t>(active_[j])]
+                   : 0.0;
         dw[j] = (e + u * de_du) * du[j] + dp;
       }
       const double dT = flight_.FlightTimeDerivative(e * u);
@@ -274,7 +277,12 @@ class TrajectoryCost final : public ceres::CostFunction {
   TrajectoryCost(const FitProblem& fp, const TrajectoryModel& model, std::vector<double> base,
                  std::optional<double> fixed_v0, Eigen::MatrixXd chol_lower,
                  std::atomic<long>* sims)
-      : fp_(fp), model_(model), base_(std::move(base)), fixed_v0_(fixed_v0), l_(std::move(chol_lower)), sims_(sims) {
+      : fp_(fp),
+        model_(model),
+        base_(std::move(base)),
+        fixed_v0_(fixed_v0),
+        l_(std::move(chol_lower)),
+        sims_(sims) {
     set_num_residuals(model.size());
     mutable_parameter_block_sizes()->push_back(static_cast<int>(model.active().size()));
     if (!fixed_v0) mutable_parameter_block_sizes()->push_back(1);
@@ -310,13 +318,17 @@ class TrajectoryCost final : public ceres::CostFunction {
     }
     const Eigen::MatrixXd jw = tri.solve(j);
     using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    if (jacobians[0]) Eigen::Map<RowMajor>(jacobians[0], n, static_cast<Eigen::Index>(na)) = jw.leftCols(static_cast<Eigen::Index>(na));
+    if (jacobians[0])
+      Eigen::Map<RowMajor>(jacobians[0], n, static_cast<Eigen::Index>(na)) =
+          jw.leftCols(static_cast<Eigen::Index>(na));
     int b = 1;
     if (!fixed_v0_) {
-      if (jacobians[b]) Eigen::Map<Eigen::VectorXd>(jacobians[b], n) = jw.col(static_cast<Eigen::Index>(na));
+      if (jacobians[b])
+        Eigen::Map<Eigen::VectorXd>(jacobians[b], n) = jw.col(static_cast<Eigen::Index>(na));
       ++b;
     }
-    if (jacobians[b]) Eigen::Map<Eigen::VectorXd>(jacobians[b], n) = jw.col(static_cast<Eigen::Index>(na + 1));
+    if (jacobians[b])
+      Eigen::Map<Eigen::VectorXd>(jacobians[b], n) = jw.col(static_cast<Eigen::Index>(na + 1));
     return true;
   }
 
@@ -391,7 +403,8 @@ RecordingSetup SetUpRecording(const FitProblem& fp, size_t r, const std::vector<
       o.start_impact_speeds_m_s[r] > 0.0) {
     rs.v0 = o.start_impact_speeds_m_s[r];
   }
-  if (o.start_time_origins_s.size() == fp.recordings.size() && std::isfinite(o.start_time_origins_s[r])) {
+  if (o.start_time_origins_s.size() == fp.recordings.size() &&
+      std::isfinite(o.start_time_origins_s[r])) {
     rs.t0 = std::clamp(o.start_time_origins_s[r], rs.t0_lower, rs.t0_upper);
   }
   if (!rs.fixed_v0) rs.v0 = std::max(rs.v0, rs.v0_lower);
@@ -438,10 +451,11 @@ bool AssembleRaw(const FitProblem& fp, const std::vector<RecordingSetup>& recs,
       sol.failure = "law " + su.law->Name() + ": the simulator fails at the fitted values";
       return false;
     }
-    if (s->simulated < static_cast<int>(m.sim_index(m.size() - 1)) + 1 && s->stop == StopReason::kStuck) {
-      sol.failure = "law " + su.law->Name() + " sticks at the best fit for " + fp.recordings[r].name +
-                    " (no rebound after simulated impact " + std::to_string(s->simulated) +
-                    "): it cannot describe this recording";
+    if (s->simulated < static_cast<int>(m.sim_index(m.size() - 1)) + 1 &&
+        s->stop == StopReason::kStuck) {
+      sol.failure = "law " + su.law->Name() + " sticks at the best fit for " +
+                    fp.recordings[r].name + " (no rebound after simulated impact " +
+                    std::to_string(s->simulated) + "): it cannot describe this recording";
       return false;
     }
     const int v0_col = rs.fixed_v0 ? -1 : col++;
@@ -449,7 +463,8 @@ bool AssembleRaw(const FitProblem& fp, const std::vector<RecordingSetup>& recs,
     for (int k = 0; k < m.size(); ++k, ++row) {
       sol.residuals(row) = rs.t0 + s->times_s[m.sim_index(k)] - m.time(k);
       const size_t jr = m.sim_index(k) * (na + 1);
-      for (size_t c = 0; c < na; ++c) sol.jacobian(row, static_cast<Eigen::Index>(c)) = s->jac[jr + c];
+      for (size_t c = 0; c < na; ++c)
+        sol.jacobian(row, static_cast<Eigen::Index>(c)) = s->jac[jr + c];
       if (v0_col >= 0) sol.jacobian(row, v0_col) = s->jac[jr + na];
       sol.jacobian(row, t0_col) = 1.0;
       sol.timing_cov(row, row) = m.sigma(k) * m.sigma(k);
@@ -471,10 +486,66 @@ bool AssembleRaw(const FitProblem& fp, const std::vector<RecordingSetup>& recs,
   return true;
 }
 
+// One Ceres solve of the trajectory at fixed covariance (scatter design g, sigma_s): the law's
+// active parameters (scaled, u), and per recording v0 (when free, with the drop's prior) and t0
+// within their physical bounds. Updates u, p and the nuisances; false when the solver fails.
+bool SolvePass(const FitProblem& fp, const std::vector<Eigen::MatrixXd>& g, double sigma_s,
+               const std::vector<int>& active, std::vector<RecordingSetup>* recordings,
+               std::vector<double>* u_ptr, std::vector<double>* p_ptr, Solution* sol_ptr,
+               std::atomic<long>* sims) {
+  std::vector<RecordingSetup>& recs = *recordings;
+  std::vector<double>& u = *u_ptr;
+  std::vector<double>& p = *p_ptr;
+  Solution& sol = *sol_ptr;
+  const LawSetup& su = fp.setup;
+  const size_t nr = recs.size();
+  ceres::Problem problem;
+  for (size_t r = 0; r < nr; ++r) {
+    RecordingSetup& rs = recs[r];
+    std::vector<double*> blocks = {u.data()};
+    if (!rs.fixed_v0) blocks.push_back(&rs.v0);
+    blocks.push_back(&rs.t0);
+    problem.AddResidualBlock(new TrajectoryCost(fp, *rs.model, p, rs.fixed_v0,
+                                                Whitening(*rs.model, g[r], sigma_s), sims),
+                             nullptr, blocks);
+    if (!rs.fixed_v0) {
+      if (rs.v_drop_sigma > 0.0) {
+        problem.AddResidualBlock(new DropPriorCost(rs.v_drop, rs.v_drop_sigma), nullptr, &rs.v0);
+      }
+      problem.SetParameterLowerBound(&rs.v0, 0, rs.v0_lower);
+      problem.SetParameterUpperBound(&rs.v0, 0, 1e3);
+    }
+    problem.SetParameterLowerBound(&rs.t0, 0, rs.t0_lower);
+    problem.SetParameterUpperBound(&rs.t0, 0, rs.t0_upper);
+  }
+  if (!u.empty()) SetLawBounds(su, active, u.data(), &problem);
+  const ceres::Solver::Options so = SolverOptions(fp.options);
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  sol.iterations += static_cast<int>(summary.iterations.size());
+  if (!summary.IsSolutionUsable()) {
+    sol.failure = "law " + su.law->Name() + ": the solver failed: " + summary.message;
+    return false;
+  }
+  sol.iteration_limit = summary.termination_type == ceres::NO_CONVERGENCE;
+  if (sol.iteration_limit) {
+    sol.limit_note =
+        "the solver reached max_iterations = " + std::to_string(fp.options.max_iterations) +
+        " before converging";
+  }
+  for (size_t j = 0; j < active.size(); ++j) {
+    const size_t a = static_cast<size_t>(active[j]);
+    p[static_cast<size_t>(su.free[a])] = su.scale[a] * u[j];
+  }
+  sol.cost = summary.final_cost;
+  return true;
+}
+
 }  // namespace
 
 Solution SolveTrajectory(const FitProblem& fp, const std::vector<double>& start,
-                         const std::vector<bool>& held, double sigma_start, std::atomic<long>* sims) {
+                         const std::vector<bool>& held, double sigma_start,
+                         std::atomic<long>* sims) {
   double sigma_s = sigma_start;
   Solution sol;
   const LawSetup& su = fp.setup;
@@ -487,7 +558,9 @@ Solution SolveTrajectory(const FitProblem& fp, const std::vector<double>& start,
   std::vector<RecordingSetup> recs;
   for (size_t r = 0; r < nr; ++r) recs.push_back(SetUpRecording(fp, r, start, active, sims));
   std::vector<double> u;
-  for (int a : active) u.push_back(start[static_cast<size_t>(su.free[static_cast<size_t>(a)])] / su.scale[static_cast<size_t>(a)]);
+  for (int a : active)
+    u.push_back(start[static_cast<size_t>(su.free[static_cast<size_t>(a)])] /
+                su.scale[static_cast<size_t>(a)]);
   std::vector<double> p = start;
   std::vector<Eigen::MatrixXd> g(nr);
   for (int pass = 0; pass < 2; ++pass) {
@@ -500,7 +573,8 @@ Solution SolveTrajectory(const FitProblem& fp, const std::vector<double>& start,
         return sol;
       }
       if (s->simulated < 2 && s->stop == StopReason::kStuck) {
-        sol.failure = "law " + su.law->Name() + " sticks at the " + (pass == 0 ? "start" : "fitted") +
+        sol.failure = "law " + su.law->Name() + " sticks at the " +
+                      (pass == 0 ? "start" : "fitted") +
                       " values (no rebound at the first impact) for " + fp.recordings[r].name;
         return sol;
       }
@@ -520,58 +594,9 @@ Solution SolveTrajectory(const FitProblem& fp, const std::vector<double>& start,
         }
       }
     }
-    ceres::Problem problem;
-    for (size_t r = 0; r < nr; ++r) {
-      RecordingSetup& rs = recs[r];
-      std::vector<double*> blocks = {u.data()};
-      if (!rs.fixed_v0) blocks.push_back(&rs.v0);
-      blocks.push_back(&rs.t0);
-      problem.AddResidualBlock(new TrajectoryCost(fp, *rs.model, p, rs.fixed_v0,
-                                                  Whitening(*rs.model, g[r], sigma_s), sims),
-                               nullptr, blocks);
-      if (!rs.fixed_v0) {
-        if (rs.v_drop_sigma > 0.0) {
-          problem.AddResidualBlock(new DropPriorCost(rs.v_drop, rs.v_drop_sigma), nullptr, &rs.v0);
-        }
-        problem.SetParameterLowerBound(&rs.v0, 0, rs.v0_lower);
-        problem.SetParameterUpperBound(&rs.v0, 0, 1e3);
-      }
-      problem.SetParameterLowerBound(&rs.t0, 0, rs.t0_lower);
-      problem.SetParameterUpperBound(&rs.t0, 0, rs.t0_upper);
-    }
-    if (!u.empty()) {
-      for (size_t j = 0; j < active.size(); ++j) {
-        const size_t a = static_cast<size_t>(active[j]);
-        const ParameterSpec& sp = su.specs()[static_cast<size_t>(su.free[a])];
-        if (std::isfinite(sp.lower)) problem.SetParameterLowerBound(u.data(), static_cast<int>(j), sp.lower / su.scale[a]);
-        if (std::isfinite(sp.upper)) problem.SetParameterUpperBound(u.data(), static_cast<int>(j), sp.upper / su.scale[a]);
-      }
-    }
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_QR;
-    so.max_num_iterations = fp.options.max_iterations;
-    so.function_tolerance = 1e-10;
-    so.parameter_tolerance = 1e-10;
-    so.gradient_tolerance = 1e-12;
-    so.num_threads = 1;
-    so.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &problem, &summary);
-    sol.iterations += static_cast<int>(summary.iterations.size());
-    if (!summary.IsSolutionUsable()) {
-      sol.failure = "law " + su.law->Name() + ": the solver failed: " + summary.message;
-      return sol;
-    }
-    sol.iteration_limit = summary.termination_type == ceres::NO_CONVERGENCE;
-    if (sol.iteration_limit) {
-      sol.limit_note = "the solver reached max_iterations = " +
-                       std::to_string(fp.options.max_iterations) + " before converging";
-    }
-    for (size_t j = 0; j < active.size(); ++j) {
-      const size_t a = static_cast<size_t>(active[j]);
-      p[static_cast<size_t>(su.free[a])] = su.scale[a] * u[j];
-    }
-    if (pass == 0) sol.cost = summary.final_cost;  // at the given sigma_s: compares starts
+    const double cost = sol.cost;
+    if (!SolvePass(fp, g, sigma_s, active, &recs, &u, &p, &sol, sims)) return sol;
+    if (pass == 1) sol.cost = cost;  // the first pass's, at the given sigma_s: compares starts
   }
   for (size_t r = 0; r < nr; ++r) {
     const auto pt = recs[r].model->Times(p, recs[r].v0, false, sims);
@@ -596,7 +621,8 @@ Solution SolveTrajectory(const FitProblem& fp, const std::vector<double>& start,
   sol.t0_sigma.clear();
   for (size_t r = 0; r < nr; ++r) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
-    sol.v0_sigma.push_back(recs[r].fixed_v0 ? nan : std::sqrt(std::max(ev.covariance(col, col), 0.0)));
+    sol.v0_sigma.push_back(recs[r].fixed_v0 ? nan
+                                            : std::sqrt(std::max(ev.covariance(col, col), 0.0)));
     if (!recs[r].fixed_v0) ++col;
     sol.t0_sigma.push_back(std::sqrt(std::max(ev.covariance(col, col), 0.0)));
     ++col;

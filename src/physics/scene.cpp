@@ -309,8 +309,9 @@ void Validate(const Scene& s, Checker* checker) {
   if (drop.height_sigma_m) {
     c.NonNegative("drop.height_sigma_m", *drop.height_sigma_m);
     if (!drop.height_m) {
-      c.Fail("drop.height_sigma_m", "is the uncertainty of drop.height_m, which is not given (got " +
-                                        Num(*drop.height_sigma_m) + " m)");
+      c.Fail("drop.height_sigma_m",
+             "is the uncertainty of drop.height_m, which is not given (got " +
+                 Num(*drop.height_sigma_m) + " m)");
     }
   }
   c.Finite("drop.first_impact_time_s", drop.first_impact_time_s);

@@ -70,7 +70,13 @@ Rng Stream(std::uint64_t seed, std::uint64_t purpose, std::uint64_t index = 0) {
   Rng mix(seed ^ (purpose * 0xD1B54A32D192ED03ULL) ^ (index * 0x8CB92BA72F3D8DD7ULL));
   return Rng(mix.Next());
 }
-enum Purpose : std::uint64_t { kNoise = 1, kHum = 2, kDistractor = 3, kModeSpread = 4, kScatter = 5 };
+enum Purpose : std::uint64_t {
+  kNoise = 1,
+  kHum = 2,
+  kDistractor = 3,
+  kModeSpread = 4,
+  kScatter = 5
+};
 
 bool Finite(double v) { return std::isfinite(v); }
 
@@ -382,9 +388,9 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
       throw Error(ErrorCode::kBadParameter, "restitution model gives e = " + Num(e_model) +
                                                 " at v = " + Num(v_in) + " m/s (expected 0..1)");
     }
-    const double e =
-        options.scatter_e > 0.0 ? std::clamp(e_model + options.scatter_e * scatter.Normal(), 0.0, 1.0)
-                                : e_model;
+    const double e = options.scatter_e > 0.0
+                         ? std::clamp(e_model + options.scatter_e * scatter.Normal(), 0.0, 1.0)
+                         : e_model;
     TruthImpact imp;
     imp.time_s = t;
     imp.v_in_m_s = v_in;
@@ -416,8 +422,9 @@ std::vector<TruthImpact> ImpactsFromLawWithScatter(const Scene& scene, const Con
   }
   const FlightModel flight = FlightModel::FromScene(scene);
   const ContactBody body = BodyFromScene(scene);
-  double v_in = scene.drop.impact_speed_m_s ? *scene.drop.impact_speed_m_s
-                                            : flight.FallArrivalSpeed(scene.drop.height_m.value_or(0.0));
+  double v_in = scene.drop.impact_speed_m_s
+                    ? *scene.drop.impact_speed_m_s
+                    : flight.FallArrivalSpeed(scene.drop.height_m.value_or(0.0));
   const double rest =
       options.rest_speed_m_s > 0 ? options.rest_speed_m_s : scene.limits.rest_speed_m_s;
   const double t_first = scene.drop.first_impact_time_s;
@@ -427,9 +434,8 @@ std::vector<TruthImpact> ImpactsFromLawWithScatter(const Scene& scene, const Con
   for (int k = 0; k < scene.limits.max_impacts && v_in > 0.0; ++k) {
     const ContactOutcome c =
         SimulateContact(law, params, body, v_in, scene.EffectiveGravity(), SimulatorOptions{});
-    const double e = c.stuck ? 0.0
-                             : std::clamp(c.restitution + options.scatter_e * scatter.Normal(),
-                                          0.0, 1.0);
+    const double e =
+        c.stuck ? 0.0 : std::clamp(c.restitution + options.scatter_e * scatter.Normal(), 0.0, 1.0);
     TruthImpact imp;
     imp.time_s = t;
     imp.v_in_m_s = v_in;
@@ -981,8 +987,8 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
   nlohmann::json j = TruthJson(spec.scene, spec.render, result.recording, spec.name);
   j["truth_source"] = TruthSourceName(spec.truth_source);
   nlohmann::json truth_opts = {{"min_interval_s", spec.truth.min_interval_s},
-                                {"scatter_e", spec.truth.scatter_e},
-                                {"scatter_seed", spec.truth.scatter_seed}};
+                               {"scatter_e", spec.truth.scatter_e},
+                               {"scatter_seed", spec.truth.scatter_seed}};
   if (spec.truth_source == TruthSource::kLaw) {
     const std::unique_ptr<ContactLaw> law = CreateLaw(spec.scene.law, spec.scene);
     const std::vector<double> values = law->ParameterValues();

@@ -187,16 +187,16 @@ struct Calibration {
   int num_residuals = 0;
   int num_free = 0;  // free parameters including nuisances (not sigma_s)
   int dof = 0;
-  double chi2 = 0.0;      // r^T C^-1 r of the full model (timing + scatter)
-  double chi2_dof = 0.0;  // ~1 when the model is right
-  double rms_residual = 0.0;    // s (trajectory) or e (restitution)
-  std::string residual_unit;    // "s" or "1"
-  double trend_chi2 = 0.0;      // lack-of-fit statistic (residual trend with speed), trend_dof
+  double chi2 = 0.0;          // r^T C^-1 r of the full model (timing + scatter)
+  double chi2_dof = 0.0;      // ~1 when the model is right
+  double rms_residual = 0.0;  // s (trajectory) or e (restitution)
+  std::string residual_unit;  // "s" or "1"
+  double trend_chi2 = 0.0;    // lack-of-fit statistic (residual trend with speed), trend_dof
   int trend_dof = 0;
   double neg_log_likelihood = 0.0;  // Gaussian -log L at the optimum
-  double aic = 0.0, bic = 0.0;  // 2 nll + 2 k, 2 nll + k ln n (k: law parameters + sigma_s)
-  int starts = 0;               // start points tried
-  int starts_reached_best = 0;  // of which ended at the best fit
+  double aic = 0.0, bic = 0.0;      // 2 nll + 2 k, 2 nll + k ln n (k: law parameters + sigma_s)
+  int starts = 0;                   // start points tried
+  int starts_reached_best = 0;      // of which ended at the best fit
   int iterations = 0;
   long simulations = 0;  // simulator calls (sequences or contacts)
   double solve_time_s = 0.0;

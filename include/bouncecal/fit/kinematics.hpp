@@ -37,13 +37,13 @@ struct Bounce {
   double v_in_sigma_m_s = 0.0;
   double v_out_m_s = 0.0;  // rebound speed after impact k (NaN for the last)
   double v_out_sigma_m_s = 0.0;
-  double e = 0.0;  // v_out / v_in (NaN where unknown)
+  double e = 0.0;        // v_out / v_in (NaN where unknown)
   double e_sigma = 0.0;  // from the timing (and drop height) sigmas: this bounce's measured e
   // e_sigma and the ball's scatter sigma_s together: e as an estimate of the ball's e at this
   // speed (what comparisons between bounces or recordings need); e_sigma if sigma_s is unknown.
   double e_total_sigma = 0.0;
   bool irregular = false;  // far off the smooth e(v) curve of the other bounces
-  double eta = 0.0;  // 1 - e^2
+  double eta = 0.0;        // 1 - e^2
   double eta_sigma = 0.0;
   double contact_s = 0.0;  // contact duration used for the correction (0 if off)
   // Correlation coefficient of e_k and e_{k+1} (they share t_k and t_{k+1}); NaN if unknown.

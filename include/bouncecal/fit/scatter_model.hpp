@@ -36,9 +36,9 @@ namespace bouncecal {
 // One measured restitution point: bounce `bounce` of recording `recording`.
 struct RestitutionPoint {
   int recording = 0;
-  int bounce = 0;     // Bounce::index
-  double u_m_s = 0.0;  // measured arrival speed
-  double e = 0.0;      // measured restitution
+  int bounce = 0;        // Bounce::index
+  double u_m_s = 0.0;    // measured arrival speed
+  double e = 0.0;        // measured restitution
   double e_sigma = 0.0;  // timing (and height) sigma of e alone
   // Global onset indices of t_{k-1}, t_k, t_{k+1} (-1: none) and the derivatives of e and u.
   std::array<int, 3> onset{-1, -1, -1};
@@ -82,10 +82,10 @@ struct ScatterFit {
   // explains the scatter) the one-sided 68 % upper limit instead (sigma_at_zero = true).
   double sigma_sigma = std::numeric_limits<double>::quiet_NaN();
   bool sigma_at_zero = false;
-  Eigen::VectorXd step;        // linearised GLS update of the parameters at sigma_s
-  Eigen::MatrixXd covariance;  // (J^T C^-1 J)^-1 at sigma_s
-  double chi2 = 0.0;           // r~^T C^-1 r~ after the step
-  double criterion = 0.0;      // the minimised REML (or ML) criterion
+  Eigen::VectorXd step;             // linearised GLS update of the parameters at sigma_s
+  Eigen::MatrixXd covariance;       // (J^T C^-1 J)^-1 at sigma_s
+  double chi2 = 0.0;                // r~^T C^-1 r~ after the step
+  double criterion = 0.0;           // the minimised REML (or ML) criterion
   double neg_log_likelihood = 0.0;  // Gaussian -log L (ML form, with n/2 log 2 pi), for AIC
 };
 

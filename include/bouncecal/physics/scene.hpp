@@ -74,7 +74,7 @@ struct Drop {
   // 1-sigma uncertainty of height_m (only with a height); unset: the height is taken as exact
   // (calibrate/analyze then report that assumption).
   std::optional<double> height_sigma_m;
-  double first_impact_time_s = 0.0;        // time origin of the first impact (simulation)
+  double first_impact_time_s = 0.0;  // time origin of the first impact (simulation)
   friend bool operator==(const Drop&, const Drop&) = default;
 };
 

@@ -14,23 +14,15 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "fit/calibrate_stages.hpp"
+#include "fit/text.hpp"
 
 namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string Fmt(double v, int prec = 6) {
-  std::ostringstream os;
-  os << std::setprecision(prec) << v;
-  return os.str();
-}
-
-std::string Join(const std::vector<std::string>& v, const char* sep = ", ") {
-  std::string out;
-  for (size_t i = 0; i < v.size(); ++i) out += (i ? sep : "") + v[i];
-  return out;
-}
+using fit_text::Fmt;
+using fit_text::Join;
 
 // The result skeleton: law identity, every parameter at the given values, no sigmas.
 Calibration Skeleton(const calib::FitProblem& fp, const std::vector<double>& p) {
@@ -203,10 +195,14 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   std::vector<bool> undetermined = calib::FindUndetermined(s, fp, &why);
   if (std::find(undetermined.begin(), undetermined.end(), true) != undetermined.end() &&
       std::find(undetermined.begin(), undetermined.end(), false) != undetermined.end()) {
-    // Hold the undetermined ones at their start values and refit the rest.
+    // Hold the undetermined ones at their start values and refit the rest from the optimum.
+    std::vector<double> restart = s.p;
+    for (size_t j = 0; j < undetermined.size(); ++j) {
+      const size_t i = static_cast<size_t>(fp.setup.free[j]);
+      if (undetermined[j]) restart[i] = fp.setup.start[i];
+    }
     calib::StartsReport again;
-    s = calib::SolveFromStarts(fp, {fp.setup.start}, undetermined, &again, &simulations);
-    report.reached_best = std::min(report.reached_best, report.tried);
+    s = calib::SolveFromStarts(fp, {restart}, undetermined, &again, &simulations);
   } else if (s.ok &&
              std::find(undetermined.begin(), undetermined.end(), false) == undetermined.end()) {
     s.held = undetermined;  // nothing determined: report every free parameter as such

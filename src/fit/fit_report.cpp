@@ -5,21 +5,13 @@
 #include <sstream>
 
 #include "bouncecal/fit/calibrate.hpp"
+#include "fit/text.hpp"
 
 namespace bouncecal {
 namespace {
 
-std::string Fmt(double v, int prec = 6) {
-  std::ostringstream os;
-  os << std::setprecision(prec) << v;
-  return os.str();
-}
-
-std::string Join(const std::vector<std::string>& v, const char* sep = ", ") {
-  std::string out;
-  for (size_t i = 0; i < v.size(); ++i) out += (i ? sep : "") + v[i];
-  return out;
-}
+using fit_text::Fmt;
+using fit_text::Join;
 
 std::string FormatResidual(double v, const std::string& unit) {
   if (!std::isfinite(v)) return "-";

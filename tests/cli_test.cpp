@@ -293,11 +293,11 @@ TEST_F(CliTest, AnalyzeCsvAndTable) {
   std::getline(lines, header);
   EXPECT_EQ(header,
             "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
-            "v_out_sigma_m_s,e,e_sigma,eta,eta_sigma,contact_s");
+            "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular");
   size_t rows = 0;
   for (std::string line; std::getline(lines, line);) {
     ++rows;
-    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 12) << line;
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 14) << line;
   }
   EXPECT_EQ(rows, n);
   const RunResult table = Run("analyze " + Quote(P("good.wav")) + " --height 0.2");

@@ -126,7 +126,12 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
   CommandResult r = RunCommand(
       kBin, "synth --law " + c.law + " --set " + c.set + " --height 0.05 --seed 7 -o " + wav);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = RunCommand(kBin, "calibrate " + wav + " --law " + c.law + " -o " + params);
+  // The ball, drop and contacts the synth preset used (calibrate needs the ball; the law's
+  // contacts are in the intervals).
+  r = RunCommand(kBin, "calibrate " + wav + " --law " + c.law +
+                           " --diameter 0.01 --material steel --height 0.05 --contact-duration "
+                           "--strategy trajectory -o " +
+                           params);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json fit = json::parse(Slurp(params));
   ASSERT_EQ(fit["fit"]["outcome"], "converged") << fit["fit"]["message"];
@@ -242,7 +247,10 @@ TEST_P(PackingRun, DeckRunsUnderTwoMpiRanks) {
   const std::string wav = dir / "rec.wav", params = dir / "params.json", out = dir / "deck";
   CommandResult r = RunCommand(kBin, "synth --law walton-braun --set gamma=0.2 --seed 3 -o " + wav);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  r = RunCommand(kBin, "calibrate " + wav + " --law walton-braun -o " + params);
+  r = RunCommand(kBin, "calibrate " + wav +
+                           " --law walton-braun --diameter 0.01 --material steel "
+                           "--contact-duration --strategy trajectory -o " +
+                           params);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   r = RunCommand(kBin, "export " + params + " --to " + target + " --scene packing -o " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;

@@ -53,7 +53,9 @@ std::string WriteFit(const ScratchDir& dir, const std::string& law,
   for (const auto& i : sim.impacts) seq.impacts.push_back({1.0 + i.time_s, 5e-6});
   Scene start;
   start.law.name = law;
-  const Calibration c = Calibrate({{"drop.wav", seq}}, start, {});
+  CalibrationOptions o;
+  o.strategy = FitStrategy::kTrajectory;  // simulated times: the contacts are in the intervals
+  const Calibration c = Calibrate({{"drop.wav", seq}}, start, o);
   Provenance prov;
   prov.bouncecal_version = "test";
   prov.date_utc = "2026-01-01T00:00:00Z";

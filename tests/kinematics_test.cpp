@@ -167,8 +167,10 @@ TEST(KinematicsTest, HertzContactTime) {
   EXPECT_THROW(HertzContactTime(scene, 2.0), Error);
 }
 
-// Monte Carlo check of the propagated sigmas (and of the correlation of successive e's).
-void CheckSigmasAgainstMonteCarlo(const Scene& scene, const AnalysisOptions& options) {
+// Monte Carlo check of the propagated timing sigmas (and of the correlation of successive e's).
+// The screen is off: these six e's are arbitrary, and their spread would count as scatter.
+void CheckSigmasAgainstMonteCarlo(const Scene& scene, AnalysisOptions options) {
+  options.screen = false;
   const std::vector<double> e = {0.9, 0.85, 0.8, 0.78, 0.75, 0.7};
   const std::vector<double> t = ExactTimes(scene, e, 0.2, 0.0, false);
   std::vector<double> sig(t.size());
@@ -287,6 +289,56 @@ TEST(KinematicsTest, InvalidInputs) {
   broken.ball.diameter_m = 0;
   EXPECT_EQ(code(FromTimes({0.1, 0.5, 0.8}), broken, {}), ErrorCode::kBadScene);
   EXPECT_EQ(code(FromTimes({0.1, 0.5, 0.8}), scene, {}), ErrorCode::kOk);
+}
+
+}  // namespace
+}  // namespace bouncecal
+
+namespace bouncecal {
+namespace {
+
+// The derivatives the fitter's covariance uses, against finite differences of AnalyzeBounces.
+TEST(KinematicsTest, SpeedAndHeightDerivativesMatchFiniteDifferences) {
+  Scene scene;
+  scene.drop.height_m = 0.5;
+  scene.effects.drag = DragModel::kQuadratic;
+  const std::vector<double> e = {0.9, 0.88, 0.87, 0.86, 0.85};
+  const std::vector<double> t = ExactTimes(scene, e, 0.2, 0.0, false);
+  AnalysisOptions o;
+  o.screen = false;
+  const Analysis ref = AnalyzeBounces(FromTimes(t, 1e-5), scene, o);
+  const double h = 1e-7;
+  for (size_t k = 1; k + 1 < t.size(); ++k) {
+    for (int which : {-1, 0}) {
+      std::vector<double> tp = t, tm = t;
+      tp[k + which] += h;
+      tm[k + which] -= h;
+      const Analysis ap = AnalyzeBounces(FromTimes(tp, 1e-5), scene, o);
+      const Analysis am = AnalyzeBounces(FromTimes(tm, 1e-5), scene, o);
+      const double fd = (ap.bounces[k].v_in_m_s - am.bounces[k].v_in_m_s) / (2 * h);
+      const double an = which < 0 ? ref.bounces[k].dv_in_dt_prev : ref.bounces[k].dv_in_dt_this;
+      EXPECT_NEAR(an, fd, 1e-5 * std::abs(fd)) << "bounce " << k << " onset " << k + which;
+    }
+  }
+  // The first impact: v_in and e against the drop height.
+  Scene up = scene, down = scene;
+  const double dh = 1e-6;
+  up.drop.height_m = 0.5 + dh;
+  down.drop.height_m = 0.5 - dh;
+  const Analysis au = AnalyzeBounces(FromTimes(t, 1e-5), up, o);
+  const Analysis ad = AnalyzeBounces(FromTimes(t, 1e-5), down, o);
+  EXPECT_NEAR(ref.bounces[0].dv_in_dh, (au.bounces[0].v_in_m_s - ad.bounces[0].v_in_m_s) / (2 * dh),
+              1e-6);
+  EXPECT_NEAR(ref.bounces[0].de_dh, (au.bounces[0].e - ad.bounces[0].e) / (2 * dh), 1e-6);
+  // A height sigma enters the first impact's speed and e sigmas (and nothing later).
+  Scene sig = scene;
+  sig.drop.height_sigma_m = 0.01;
+  const Analysis as = AnalyzeBounces(FromTimes(t, 1e-5), sig, o);
+  EXPECT_NEAR(as.bounces[0].v_in_sigma_m_s, std::abs(ref.bounces[0].dv_in_dh) * 0.01, 1e-12);
+  EXPECT_NEAR(as.bounces[0].e_sigma,
+              std::hypot(ref.bounces[0].e_sigma, ref.bounces[0].de_dh * 0.01), 1e-12);
+  EXPECT_DOUBLE_EQ(as.bounces[2].e_sigma, ref.bounces[2].e_sigma);
+  EXPECT_EQ(as.height_sigma_m, 0.01);
 }
 
 }  // namespace

@@ -48,7 +48,8 @@ std::string ReadText(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-// A real (small) calibration: walton-braun gamma = 0.408 from 10 simulated impacts.
+// A real (small) calibration: walton-braun gamma = 0.408 from 10 simulated impacts, fitted as
+// simulated (trajectory strategy: the intervals include the contacts).
 const Calibration& SampleFit() {
   static const Calibration c = [] {
     Scene s;
@@ -59,7 +60,9 @@ const Calibration& SampleFit() {
     Sequence seq;
     for (const auto& i : sim.impacts) seq.impacts.push_back({1.0 + i.time_s, 5e-6});
     Scene start;
-    return Calibrate({{"drop.wav", seq}}, start, {});
+    CalibrationOptions o;
+    o.strategy = FitStrategy::kTrajectory;
+    return Calibrate({{"drop.wav", seq}}, start, o);
   }();
   return c;
 }
@@ -127,11 +130,15 @@ TEST(ParamFile, SchemaKeysAndTypes) {
   EXPECT_NEAR(j["e_of_v"].back()["v_m_s"].get<double>(), c.v_max_m_s, 1e-9);
   const json& fit = j.at("fit");
   for (const char* key : {"strategy", "rms_residual_s", "chi2_dof", "outcome", "iterations",
-                          "determined", "undetermined", "aic", "bic", "dof"}) {
+                          "determined", "undetermined", "aic", "bic", "dof", "reason", "exit_code",
+                          "scatter_e", "scatter_e_sigma", "starts"}) {
     EXPECT_TRUE(fit.contains(key)) << key;
   }
   EXPECT_EQ(fit.at("strategy"), "trajectory");
   EXPECT_EQ(fit.at("outcome"), "converged");
+  EXPECT_EQ(fit.at("exit_code"), 0);
+  EXPECT_TRUE(fit.at("scatter_e").is_number());
+  EXPECT_TRUE(j.at("warnings").is_array());
   EXPECT_EQ(fit.at("determined"), json::array({"gamma"}));
   for (const char* key : {"ball", "surface", "environment", "drop", "effects", "law"}) {
     EXPECT_TRUE(j.at("scene").contains(key)) << key;
@@ -143,7 +150,7 @@ TEST(ParamFile, SchemaKeysAndTypes) {
   EXPECT_EQ(pv.at("inputs")[0].at("sha256"), Sha256OfString("x"));
   EXPECT_EQ(pv.at("bouncecal_version"), "9.9.9");
   EXPECT_EQ(pv.at("date_utc"), "2026-01-01T00:00:00Z");
-  EXPECT_EQ(pv.at("options").at("strategy"), "trajectory");
+  EXPECT_EQ(pv.at("options").at("strategy"), "restitution");  // the options passed in
   EXPECT_EQ(j.at("recordings")[0].at("path"), "drop.wav");
   EXPECT_TRUE(j.at("recordings")[0].at("time_origin_s").is_number());
   // Restitution fits name their RMS in e.
@@ -164,6 +171,8 @@ TEST(ParamFile, WriteReadRoundTripFeedsCreateLaw) {
   EXPECT_EQ(p.schema, kParamFileSchema);
   EXPECT_EQ(p.law.name, "walton-braun");
   EXPECT_EQ(p.outcome, "converged");
+  ASSERT_EQ(p.warnings.size(), c.warnings.size());  // the codes read back, in order
+  for (size_t i = 0; i < c.warnings.size(); ++i) EXPECT_EQ(p.warnings[i], c.warnings[i].code);
   EXPECT_DOUBLE_EQ(p.law.parameters.at("gamma"), c.parameters[1].value);
   EXPECT_TRUE(p.sigma.count("gamma"));
   EXPECT_FALSE(p.sigma.count("k"));

@@ -361,3 +361,54 @@ TEST(SceneTest, DragModelNames) {
 
 }  // namespace
 }  // namespace bouncecal
+
+namespace bouncecal {
+namespace {
+
+TEST(SceneTest, DropHeightSigmaParsesValidatesAndRoundTrips) {
+  const Scene s = ParseScene("[drop]\nheight_m = 2.5\nheight_sigma_m = 0.01\n", "d.toml");
+  ASSERT_TRUE(s.drop.height_sigma_m.has_value());
+  EXPECT_DOUBLE_EQ(*s.drop.height_sigma_m, 0.01);
+  EXPECT_EQ(ParseScene(SceneToToml(s), "d.toml"), s);
+  EXPECT_FALSE(ParseScene("[drop]\nheight_m = 1\n", "").drop.height_sigma_m.has_value());
+  auto message = [](const std::string& text) {
+    try {
+      ParseScene(text, "d.toml");
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kBadScene);
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("[drop]\nheight_m = 1\nheight_sigma_m = -0.1\n")
+                .find("d.toml:3: drop.height_sigma_m: must be >= 0"),
+            std::string::npos);
+  // A sigma without its height (here: an impact speed instead) contradicts the scene.
+  const std::string orphan = message("[drop]\nimpact_speed_m_s = 2\nheight_sigma_m = 0.01\n");
+  EXPECT_NE(
+      orphan.find("drop.height_sigma_m: is the uncertainty of drop.height_m, which is not given"),
+      std::string::npos)
+      << orphan;
+  Scene bad;
+  bad.drop.height_sigma_m = std::nan("");
+  std::string err;
+  EXPECT_FALSE(bad.IsValid(&err));
+  EXPECT_NE(err.find("drop.height_sigma_m"), std::string::npos) << err;
+}
+
+TEST(SceneTest, SceneFileKeysListWhatTheFileGives) {
+  const std::string path = ::testing::TempDir() + "/keys_" + std::to_string(::getpid()) + ".toml";
+  {
+    std::ofstream(path) << "[ball]\ndiameter_m = 0.04\nmaterial = \"pingpong\"\n[effects]\ndrag = "
+                           "\"quadratic\"\n[law.parameters]\nA = 1e-6\n";
+  }
+  const std::vector<std::string> keys = SceneFileKeys(path);
+  const std::vector<std::string> want = {"ball.diameter_m", "ball.material", "effects.drag",
+                                         "law.parameters.A"};
+  EXPECT_EQ(keys, want);
+  std::remove(path.c_str());
+  EXPECT_THROW(SceneFileKeys(path), Error);  // gone: the same error as LoadSceneFile
+}
+
+}  // namespace
+}  // namespace bouncecal

@@ -7,9 +7,14 @@
 //  2. end-to-end calibrate (read + detect + fit, as `bouncecal calibrate` does) on a rendered
 //     10 s, 48 kHz recording under a nonlinear law, and the `--law all` comparison on it;
 //  3. seed 002's numbers: dt0 = 2 sqrt(2h/g) for h = 0.2 m and the damping for its measured
-//     mean eta = 0.58 (paper: gamma = 0.5 by a five-value sweep; its simulation gave 0.598).
+//     mean eta = 0.58 (paper: gamma = 0.5 by a five-value sweep; its simulation gave 0.598);
+//  4. the scatter error model (PHYSICS.md §6): bounce sequences rendered with per-bounce
+//     restitution scatter sigma_s (0.002, 0.004, 0.01) and 5 us timing noise, truth e(v) from
+//     the independent Boost.Odeint law oracle (tests/law_oracle.hpp, gravity in the contact) and
+//     exact flights: sigma_s recovered, pull RMS of the damping parameter and of the e(v) band
+//     (target [0.7, 1.4]), chi2/dof of the full model (~1), per strategy.
 //
-// Usage: bench_calibrate [--quick]
+// Usage: bench_calibrate [--quick] [--scatter-only]
 #include <time.h>
 
 #include <algorithm>
@@ -21,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "../tests/oracle_truth.hpp"
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
@@ -44,6 +50,13 @@ double Now() {
 Scene SteelScene(const std::string& law) {
   Scene s;  // seed 002: 1 cm steel ball from 0.2 m
   s.law.name = law;
+  return s;
+}
+
+// The scene a fit of simulated impacts needs: the simulator puts each contact in the interval.
+Scene FitScene(const std::string& law) {
+  Scene s = SteelScene(law);
+  s.effects.contact_duration = true;
   return s;
 }
 
@@ -115,7 +128,7 @@ void CostTable(const std::string& law_name, double e_target, int seeds, int impa
           const Sequence seq = Measured(sim, impacts, sigma_s, static_cast<std::uint64_t>(seed));
           try {
             const double t0 = Now();
-            const Calibration c = Calibrate({{"bench", seq}}, SteelScene(law_name), o);
+            const Calibration c = Calibrate({{"bench", seq}}, FitScene(law_name), o);
             time += Now() - t0;
             for (const auto& p : c.parameters) {
               if (p.name != dname) continue;
@@ -180,7 +193,7 @@ void EndToEnd(const std::string& law_name, double e_target, bool run_all) {
     const DetectionResult det = DetectImpacts(audio, DetectOptions{});
     const double t2 = Now();
     Sequence seq = det.main();
-    Scene start = SteelScene(law_name);
+    Scene start = FitScene(law_name);
     const Calibration c = Calibrate({{path, seq}}, start, {});
     const double t3 = Now();
     double got = 0.0, sigma = 0.0;
@@ -198,7 +211,7 @@ void EndToEnd(const std::string& law_name, double e_target, bool run_all) {
     const double t0 = Now();
     const Audio audio = ReadAudio(path);
     const DetectionResult det = DetectImpacts(audio, DetectOptions{});
-    const auto rows = CompareLaws({{path, det.main()}}, SteelScene(law_name), {});
+    const auto rows = CompareLaws({{path, det.main()}}, FitScene(law_name), {});
     const double t1 = Now();
     int failed = 0;
     for (const auto& r : rows) failed += r.fit.outcome == FitOutcome::kFailed ? 1 : 0;
@@ -256,17 +269,115 @@ void SeedPaper() {
       (*p)[static_cast<size_t>(gi)], 1.0 - e_fit * e_fit);
 }
 
+// ---- 4. the scatter error model -------------------------------------------------------------
+
+struct ScatterCase {
+  Scene scene;  // hertz-viscoelastic, 1 cm steel ball from 0.5 m, A for e(1 m/s) = 0.85
+  double a_true = 0.0;
+};
+
+ScatterCase MakeScatterCase() {
+  ScatterCase c;
+  c.scene = WithDampingForE(SteelScene("hertz-viscoelastic"), 0.85);
+  c.scene.drop.height_m = 0.5;
+  c.a_true = c.scene.law.parameters.at("A");
+  return c;
+}
+
+// Onsets of one drop with scatter (truth from the oracle) and Gaussian timing noise; the
+// trajectory's simulator puts each contact in the interval, so its truth does too.
+Sequence ScatterSequence(const ScatterCase& c, double scatter, std::uint64_t seed,
+                         double timing_sigma_s, bool contact_in_interval) {
+  oracle_truth::Options o;
+  o.scatter_e = scatter;
+  o.timing_sigma_s = timing_sigma_s;
+  o.contact_in_interval = contact_in_interval;
+  o.seed = seed;
+  return oracle_truth::Make(c.scene, o).sequence;
+}
+
+void ScatterTable(int seeds) {
+  const ScatterCase c = MakeScatterCase();
+  auto law = CreateLaw(c.scene.law, c.scene);
+  const ContactBody body = BodyFromScene(c.scene);
+  std::printf(
+      "\n### Scatter error model: hertz-viscoelastic A = %.4g s (e(1 m/s) = 0.85), 1 cm steel "
+      "ball from 0.5 m (exact), 5 us timing noise, %d seeds per row\n\n",
+      c.a_true, seeds);
+  std::printf(
+      "| strategy | sigma_s true | sigma_s fitted (mean) | RMS (fit - true)/sigma | "
+      "pull RMS of A (mean) | pull RMS of e(v) band | chi2/dof (mean) | bounces | converged | "
+      "time per fit (ms) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+  for (FitStrategy st : {FitStrategy::kRestitution, FitStrategy::kTrajectory}) {
+    for (double scatter : {0.0, 0.002, 0.004, 0.01}) {
+      double s_sum = 0, s_pull = 0, a_pull = 0, a_bias = 0, e_pull = 0, chi = 0, time = 0;
+      int n_e = 0, ok = 0, bounces = 0;
+      for (int seed = 1; seed <= seeds; ++seed) {
+        const bool traj = st == FitStrategy::kTrajectory;
+        const Sequence seq =
+            ScatterSequence(c, scatter, static_cast<std::uint64_t>(seed), 5e-6, traj);
+        Scene start = c.scene;
+        start.law.parameters.erase("A");        // start from the law's default, not the truth
+        start.effects.contact_duration = traj;  // the kinematics take the contacts out
+        CalibrationOptions o;
+        o.strategy = st;
+        const double t0 = Now();
+        const Calibration fit = Calibrate({{"scatter", seq}}, start, o);
+        time += Now() - t0;
+        if (fit.outcome != FitOutcome::kConverged) continue;
+        ++ok;
+        bounces += fit.num_residuals;
+        s_sum += fit.scatter_e;
+        s_pull += std::pow((fit.scatter_e - scatter) / fit.scatter_e_sigma, 2);
+        for (const auto& p : fit.parameters) {
+          if (p.name == "A") {
+            a_pull += std::pow((p.value - c.a_true) / p.sigma, 2);
+            a_bias += (p.value - c.a_true) / p.sigma;
+          }
+        }
+        chi += fit.chi2_dof;
+        // The e(v) band against the law's own e(v) at the true A (oracle, no gravity: the
+        // reported band is the law's e).
+        for (const EOfVPoint& pt : fit.e_of_v) {
+          const double e_true =
+              oracle::Integrate(*law, law->ParameterValues(), body, pt.v_m_s).restitution;
+          e_pull += std::pow((pt.e - e_true) / pt.sigma, 2);
+          ++n_e;
+        }
+      }
+      if (ok == 0) {
+        std::printf("| %s | %.3f | no fit converged | | | | | | 0/%d | |\n", FitStrategyName(st),
+                    scatter, seeds);
+        continue;
+      }
+      std::printf("| %s | %.3f | %.4f | %.2f | %.2f (%+.2f) | %.2f | %.2f | %d | %d/%d | %.0f |\n",
+                  FitStrategyName(st), scatter, s_sum / ok, std::sqrt(s_pull / ok),
+                  std::sqrt(a_pull / ok), a_bias / ok, std::sqrt(e_pull / std::max(n_e, 1)),
+                  chi / ok, bounces / ok, ok, seeds, 1e3 * time / seeds);
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  const bool quick = argc > 1 && std::string(argv[1]) == "--quick";
+  bool quick = false, scatter_only = false;
+  for (int i = 1; i < argc; ++i) {
+    quick |= std::string(argv[i]) == "--quick";
+    scatter_only |= std::string(argv[i]) == "--scatter-only";
+  }
   try {
     std::printf("# bench_calibrate%s\n", quick ? " (--quick)" : "");
+    if (scatter_only) {
+      ScatterTable(quick ? 4 : 20);
+      return 0;
+    }
     SeedPaper();
     const int seeds = quick ? 2 : 5;
     CostTable("walton-braun", 0.8, seeds, 14, 5e-6);
     CostTable("hertz-viscoelastic", 0.9, seeds, 20, 5e-6);
     EndToEnd("hertz-viscoelastic", 0.92, true);
+    ScatterTable(quick ? 4 : 20);
   } catch (const Error& e) {
     std::fprintf(stderr, "bench_calibrate: %s\n", e.what());
     return e.exit_code();

@@ -5,15 +5,20 @@
 //   bouncecal analyze drop.wav --drag quadratic --csv       # one row per bounce
 //
 // = ReadAudio + DetectImpacts (detect.hpp) + AnalyzeBounces (kinematics.hpp) of the main
-// (longest) sequence. The first impact's restitution needs the drop: it is used when a scene file
-// or --height/--impact-speed is given (otherwise the default 0.2 m would be silently assumed).
+// (longest) sequence. The first impact's restitution needs the drop: it is used when the scene
+// file has [drop] or --height/--impact-speed is given (the built-in 0.2 m is never assumed).
+// Every other value the result depends on and the user did not give is listed as assumed.
+// e_sigma includes the ball's scatter from bounce to bounce (bounce_screen.hpp);
+// e_timing_sigma is the timing part alone.
 //
 // --json: {"file", "sample_rate_hz", "channels", "channel", "scene": {effects, g, drop...},
 //   "sequence": {...}, "bounces": [{"index", "time_s", "time_sigma_s", "interval_s", "v_in_m_s",
-//   "v_in_sigma_m_s", "v_out_m_s", "v_out_sigma_m_s", "e", "e_sigma", "eta", "eta_sigma",
-//   "contact_s", "e_next_correlation"}, ...], "summary": {"mean_eta_first3",
-//   "mean_eta_first3_sigma", "mean_eta_indices", "first_e", "first_e_sigma", "n_bounces",
-//   "n_with_e", "e_min", "e_max"}, "warnings": [...]}. Unknown values are null, never "nan".
+//   "v_in_sigma_m_s", "v_out_m_s", "v_out_sigma_m_s", "e", "e_sigma", "e_timing_sigma", "eta",
+//   "eta_sigma", "contact_s", "e_next_correlation", "irregular"}, ...], "summary":
+//   {"mean_eta_first3", "mean_eta_first3_sigma", "mean_eta_indices", "first_e", "first_e_sigma",
+//   "scatter_e", "scatter_e_sigma", "drop_consistent", "drop_height_fit_m", "drag_effect_e",
+//   "n_bounces", "n_with_e", "e_min", "e_max"}, "assumed": [{"key", "value", "note"}],
+//   "warnings": [...]}. Unknown values are null, never "nan".
 // --csv: header + one row per bounce, unknown values empty.
 // Errors: one line on stderr, exit code from error.hpp, nothing on stdout.
 #include <cmath>
@@ -29,6 +34,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/fit/kinematics.hpp"
+#include "bouncecal/fit/scene_checks.hpp"
 #include "commands.hpp"
 #include "detect_flags.hpp"
 #include "output.hpp"
@@ -79,7 +85,8 @@ Summary Summarize(const Analysis& a) {
   return s;
 }
 
-nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
+nlohmann::json SceneJson(const GivenScene& gs, const Analysis& a) {
+  const Scene& scene = gs.scene;
   nlohmann::json j;
   j["source"] = scene.source.empty() ? nlohmann::json() : nlohmann::json(scene.source);
   j["drag"] = DragModelName(scene.effects.drag);
@@ -89,8 +96,11 @@ nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
   j["g_m_s2"] = scene.environment.g_m_s2;
   j["effective_gravity_m_s2"] = a.effective_gravity_m_s2;
   j["terminal_speed_m_s"] = Num(a.terminal_speed_m_s);
-  j["drop_height_m"] = use_drop ? Opt(scene.drop.height_m) : nlohmann::json();
-  j["impact_speed_m_s"] = use_drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
+  const bool drop = gs.drop_given;
+  j["drop_height_m"] = drop ? Opt(scene.drop.height_m) : nlohmann::json();
+  j["drop_height_sigma_m"] =
+      drop && scene.drop.height_m ? nlohmann::json(a.height_sigma_m) : nlohmann::json();
+  j["impact_speed_m_s"] = drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
   j["ball"] = {{"diameter_m", scene.ball.diameter_m},
                {"mass_kg", Num(scene.ball.Mass())},
                {"density_kg_m3", Num(scene.ball.Density())},
@@ -98,7 +108,8 @@ nlohmann::json SceneJson(const Scene& scene, const Analysis& a, bool use_drop) {
   return j;
 }
 
-std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
+std::string EffectsLine(const GivenScene& gs, const Analysis& a) {
+  const Scene& scene = gs.scene;
   std::ostringstream o;
   o << "scene: drag " << DragModelName(scene.effects.drag);
   if (scene.effects.drag != DragModel::kNone) {
@@ -108,10 +119,11 @@ std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
     << (scene.effects.contact_duration ? "on" : "off") << "; g_eff "
     << Fixed(a.effective_gravity_m_s2, 5) << " m/s^2; ball " << scene.ball.material << " "
     << Fixed(scene.ball.diameter_m * 1000, 2) << " mm";
-  if (!use_drop) {
+  if (!gs.drop_given) {
     o << "; drop unknown (first e not computed: give --height or --impact-speed)";
   } else if (scene.drop.height_m) {
     o << "; drop height " << Fixed(*scene.drop.height_m, 4) << " m";
+    if (a.height_sigma_m > 0.0) o << " +- " << Fixed(a.height_sigma_m, 4) << " m";
   } else if (scene.drop.impact_speed_m_s) {
     o << "; first impact speed " << Fixed(*scene.drop.impact_speed_m_s, 4) << " m/s";
   }
@@ -119,11 +131,12 @@ std::string EffectsLine(const Scene& scene, const Analysis& a, bool use_drop) {
 }
 
 // One chosen sequence of one recording; JSON goes to *json (when --json), text to stdout.
-void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions& aopt,
+void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptions& aopt,
             const std::string& file, const LoadedRecording& loaded, int chosen,
             nlohmann::json* json_out) {
   const DetectionResult& det = loaded.result;
   const AudioInfo& info = det.audio;
+  const Scene& scene = gs.scene;
   const Sequence& seq = det.sequences.at(static_cast<std::size_t>(chosen));
   Analysis an;
   try {
@@ -132,8 +145,10 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
     if (e.code() == ErrorCode::kNoBounces) throw Error(e.code(), file + ": " + e.what());
     throw;
   }
-  std::vector<Warning> warnings = det.warnings;
+  std::vector<Warning> warnings = SceneUnitWarnings(scene, gs.drop_given);
+  for (const Warning& w : det.warnings) warnings.push_back(w);
   for (const Warning& w : an.warnings) warnings.push_back(w);
+  const std::vector<Assumed> assumed = AssumedValues(gs, false);
   const Summary sum = Summarize(an);
 
   if (flags.json) {
@@ -142,7 +157,7 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
     j["sample_rate_hz"] = Num(info.sample_rate_hz > 0 ? info.sample_rate_hz : NAN);
     j["channels"] = info.channels;
     j["channel"] = det.channel >= 0 ? nlohmann::json(det.channel) : nlohmann::json("mix");
-    j["scene"] = SceneJson(scene, an, aopt.use_drop);
+    j["scene"] = SceneJson(gs, an);
     j["sequence"] = {{"n_sequences", det.sequences.size()},
                      {"main_sequence", det.main_sequence},
                      {"sequence", chosen},
@@ -161,11 +176,13 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
                          {"v_out_m_s", Num(b.v_out_m_s)},
                          {"v_out_sigma_m_s", Num(b.v_out_sigma_m_s)},
                          {"e", Num(b.e)},
-                         {"e_sigma", Num(b.e_sigma)},
+                         {"e_sigma", Num(b.e_total_sigma)},
+                         {"e_timing_sigma", Num(b.e_sigma)},
                          {"eta", Num(b.eta)},
                          {"eta_sigma", Num(b.eta_sigma)},
                          {"contact_s", Num(b.contact_s)},
-                         {"e_next_correlation", Num(b.e_next_correlation)}});
+                         {"e_next_correlation", Num(b.e_next_correlation)},
+                         {"irregular", b.irregular}});
     }
     j["bounces"] = bounces;
     j["summary"] = {{"mean_eta_first3", Opt(an.mean_eta_first3)},
@@ -173,10 +190,16 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
                     {"mean_eta_indices", an.mean_eta_indices},
                     {"first_e", Opt(an.first_e)},
                     {"first_e_sigma", Opt(an.first_e_sigma)},
+                    {"scatter_e", Opt(an.scatter_e)},
+                    {"scatter_e_sigma", Opt(an.scatter_e_sigma)},
+                    {"drop_consistent", an.drop_consistent},
+                    {"drop_height_fit_m", Opt(an.drop_height_fit_m)},
+                    {"drag_effect_e", Opt(an.drag_effect_e)},
                     {"n_bounces", an.bounces.size()},
                     {"n_with_e", sum.n_with_e},
                     {"e_min", Num(sum.e_min)},
                     {"e_max", Num(sum.e_max)}};
+    j["assumed"] = AssumedJson(assumed);
     j["warnings"] = WarningsJson(warnings);
     json_out->push_back(j);
     return;
@@ -186,13 +209,14 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
   std::ostringstream o;
   if (flags.csv) {
     o << "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
-         "v_out_sigma_m_s,e,e_sigma,eta,eta_sigma,contact_s\n";
+         "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular\n";
     for (const Bounce& b : an.bounces) {
       o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
         << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
         << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
-        << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta) << "," << CsvNum(b.eta_sigma) << ","
-        << CsvNum(b.contact_s) << "\n";
+        << "," << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta)
+        << "," << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << ","
+        << (b.irregular ? 1 : 0) << "\n";
     }
     std::cout << o.str();
     return;
@@ -203,7 +227,7 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
     << (det.channel >= 0 ? "channel " + std::to_string(det.channel) : std::string("mix"))
     << " used; " << seq.impacts.size() << " impacts in the sequence (of " << det.sequences.size()
     << " sequence(s)), end: " << seq.end_reason << "\n";
-  o << EffectsLine(scene, an, aopt.use_drop) << "\n\n";
+  o << EffectsLine(gs, an) << "\n" << AssumedText(assumed) << "\n";
   // "value +- sigma" pairs, "-" where unknown.
   auto pm = [](double v, double sigma, int decimals, int sigma_decimals) {
     if (!std::isfinite(v)) return std::string("-");
@@ -221,12 +245,13 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
   o << rstrip(head);
   for (const Bounce& b : an.bounces) {
     char line[512];
-    std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s\n", b.index,
+    std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s%s\n", b.index,
                   b.time_s, Fixed(b.time_sigma_s * 1e6, 2).c_str(), Fixed(b.interval_s, 6).c_str(),
                   pm(b.v_in_m_s, b.v_in_sigma_m_s, 5, 5).c_str(),
                   pm(b.v_out_m_s, b.v_out_sigma_m_s, 5, 5).c_str(),
-                  pm(b.e, b.e_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
-                  show_contact ? ("  " + Fixed(b.contact_s * 1e6, 1, 10)).c_str() : "");
+                  pm(b.e, b.e_total_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
+                  show_contact ? ("  " + Fixed(b.contact_s * 1e6, 1, 10)).c_str() : "",
+                  b.irregular ? "  irregular" : "");
     o << rstrip(line);
   }
   o << "\nsummary: " << an.bounces.size() << " impacts, " << sum.n_with_e << " with e";
@@ -237,22 +262,41 @@ void RunOne(const AnalyzeFlags& flags, const Scene& scene, const AnalysisOptions
     o << "; first impact e = " << Fixed(*an.first_e, 5) << " +- " << Fixed(*an.first_e_sigma, 5);
   }
   o << "\n";
+  if (an.scatter_e) {
+    auto g2 = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.2g", v);
+      return std::string(buf);
+    };
+    o << "scatter of e from bounce to bounce: ";
+    if (*an.scatter_e > 0.0) {
+      o << g2(*an.scatter_e) << " +- " << g2(*an.scatter_e_sigma);
+    } else {
+      o << "0 (< " << g2(*an.scatter_e_sigma) << ", 68 % upper limit)";
+    }
+    o << " (e sigmas above include it; timing alone: e_timing_sigma in --json)\n";
+  }
   if (an.mean_eta_first3) {
     o << "mean eta of the first three (impacts";
     for (int k : an.mean_eta_indices) o << " " << k;
-    o << ") = " << Fixed(*an.mean_eta_first3, 5) << " +- " << Fixed(*an.mean_eta_first3_sigma, 5)
-      << "  (seed 002: 0.58 for a steel ball on copper)\n";
+    o << ") = " << Fixed(*an.mean_eta_first3, 5) << " +- " << Fixed(*an.mean_eta_first3_sigma, 5);
+    // The seed paper's number is for its own experiment only.
+    if (scene.ball.material == "steel" && scene.surface.material == "copper") {
+      o << "  (seed 002: 0.58 for a steel ball on copper)";
+    }
+    o << "\n";
   }
   std::cout << o.str();
 }
 
 void Run(const AnalyzeFlags& flags) {
   // The scene first: it is cheap and its errors should not wait for the detector.
-  Scene scene = ResolveScene(flags.scene);
-  if (flags.contact_time_s) scene.effects.contact_duration = true;  // a given duration is used
+  GivenScene gs = ResolveGivenScene(flags.scene);
+  if (flags.contact_time_s) gs.scene.effects.contact_duration = true;  // a given duration is used
   AnalysisOptions aopt;
-  aopt.use_drop = !flags.scene.scene_file.empty() || flags.scene.height_m.has_value() ||
-                  flags.scene.impact_speed_m_s.has_value();
+  aopt.use_drop = gs.drop_given;
+  // Drag off by the user's choice, or no ball to compute it for: no drag check.
+  aopt.check_drag = !gs.Given("effects.drag") && gs.ball_given;
   if (flags.contact_time_s) aopt.contact_time_s = *flags.contact_time_s;
   std::string why;
   if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
@@ -268,7 +312,7 @@ void Run(const AnalyzeFlags& flags) {
       const LoadedRecording loaded = LoadRecording(rec, nullptr, imp, flags.detect);
       for (int s : loaded.chosen) {
         if (!flags.json && !flags.csv && (n > 0 || s != loaded.chosen.front())) std::cout << "\n";
-        RunOne(flags, scene, aopt, name, loaded, s, &all);
+        RunOne(flags, gs, aopt, name, loaded, s, &all);
       }
     } catch (const Error& e) {
       if (!several) throw;

@@ -5,7 +5,9 @@
 // nuisances) unless --batch, which fits each file separately on a worker pool (--jobs N) and
 // prints one summary line per file (text, --csv or --json lines), reporting per-file failures
 // on stderr without stopping the others (exit code kSomeFailed if any failed).
-// --law all fits every registered law and prints a ranked table.
+// --law all fits every registered law as a single run would and prints the adequate ones
+// ranked, the others with their outcome. Every fit outcome other than converged exits with its
+// own code (error.hpp) after the output and the parameter file are written.
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,11 +23,13 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/fit/calibrate.hpp"
+#include "bouncecal/fit/scene_checks.hpp"
 #include "bouncecal/io/param_file.hpp"
 #include "bouncecal/io/provenance.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 #include "detect_flags.hpp"
+#include "output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -34,15 +38,17 @@ namespace {
 struct CalibrateArgs {
   std::vector<std::string> files;
   SceneFlags scene;
-  std::string strategy = "trajectory";
+  std::string strategy = "restitution";
   std::vector<std::string> free;
   std::vector<std::string> fix;
   std::string derivatives = "auto";
   double rtol = 1e-9;
-  std::string loss = "huber";
+  std::string loss = "none";
   double loss_scale = 3.0;
-  int max_iterations = 60;
-  bool use_drop = false;
+  int max_iterations = 100;
+  int starts = 4;
+  bool ignore_drop = false;
+  bool no_scatter = false;
   DetectFlags detect;
   std::string output;
   bool force = false;
@@ -79,40 +85,10 @@ std::vector<CalibrationInput> Detect(const std::pair<std::string, std::string>& 
   return out;
 }
 
-// Detects every input on up to `jobs` threads; throws the first input's error in input order.
-std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string, std::string>>& in,
-                                        const DetectFlags& flags, int jobs) {
-  std::vector<std::vector<CalibrationInput>> per(in.size());
-  std::vector<std::optional<Error>> errors(in.size());
-  std::atomic<size_t> next{0};
-  auto worker = [&]() {
-    for (size_t i = next++; i < in.size(); i = next++) {
-      try {
-        per[i] = Detect(in[i], flags);
-      } catch (const Error& e) {
-        errors[i] = e;
-      } catch (const std::exception& e) {
-        errors[i] = Error(ErrorCode::kInternal, in[i].first + ": " + e.what());
-      }
-    }
-  };
-  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(in.size())));
-  std::vector<std::thread> pool;
-  for (int t = 1; t < n; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
-  for (auto& e : errors) {
-    if (e) throw *e;
-  }
-  std::vector<CalibrationInput> out;
-  for (auto& p : per) out.insert(out.end(), p.begin(), p.end());
-  return out;
-}
-
 std::string CsvHeader(const std::vector<ParameterSpec>& specs) {
   std::string h = "file,status,error,law,outcome,impacts";
   for (const auto& s : specs) h += "," + s.name + "," + s.name + "_sigma";
-  return h + ",rms_residual,residual_unit,chi2_dof";
+  return h + ",scatter_e,scatter_e_sigma,rms_residual,residual_unit,chi2_dof,reason";
 }
 
 std::string CsvRow(const std::string& file, const std::vector<ParameterSpec>& specs,
@@ -121,14 +97,17 @@ std::string CsvRow(const std::string& file, const std::vector<ParameterSpec>& sp
   if (err) {
     row += std::string(ErrorCodeName(err->code())) + "," + CsvField(err->what()) + ",,,";
     for (size_t i = 0; i < specs.size(); ++i) row += ",,";
-    return row + ",,";
+    return row + ",,,,,,";
   }
-  row += "ok,," + c->law + "," + FitOutcomeName(c->outcome) + ",";
+  row += std::string(c->outcome == FitOutcome::kConverged ? "ok" : "fit") + ",," + c->law + "," +
+         FitOutcomeName(c->outcome) + ",";
   int impacts = 0;
   for (const auto& r : c->recordings) impacts += r.impacts;
   row += std::to_string(impacts);
   for (const auto& p : c->parameters) row += "," + Num(p.value) + "," + Num(p.sigma, 4);
-  return row + "," + Num(c->rms_residual, 6) + "," + c->residual_unit + "," + Num(c->chi2_dof, 6);
+  return row + "," + Num(c->scatter_e, 4) + "," + Num(c->scatter_e_sigma, 3) + "," +
+         Num(c->rms_residual, 6) + "," + c->residual_unit + "," + Num(c->chi2_dof, 6) + "," +
+         CsvField(c->outcome == FitOutcome::kConverged ? "" : c->reason);
 }
 
 nlohmann::json JsonRow(const std::string& file, const Calibration* c, const Error* err) {
@@ -138,9 +117,13 @@ nlohmann::json JsonRow(const std::string& file, const Calibration* c, const Erro
     j["error"] = err->what();
     return j;
   }
-  j["status"] = "ok";
+  j["status"] = c->outcome == FitOutcome::kConverged ? "ok" : "fit";
   j["law"] = c->law;
   j["outcome"] = FitOutcomeName(c->outcome);
+  j["reason"] = c->reason;
+  j["scatter_e"] = JsonNumber(c->scatter_e);
+  j["scatter_e_sigma"] = JsonNumber(c->scatter_e_sigma);
+  j["warnings"] = WarningsJson(c->warnings);
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : c->parameters) {
     params[p.name] = {{"value", std::isfinite(p.value) ? nlohmann::json(p.value) : nullptr},
@@ -153,8 +136,8 @@ nlohmann::json JsonRow(const std::string& file, const Calibration* c, const Erro
   for (const auto& r : c->recordings) impacts += r.impacts;
   j["impacts"] = impacts;
   j[c->strategy == FitStrategy::kTrajectory ? "rms_residual_s" : "rms_residual_e"] =
-      c->rms_residual;
-  j["chi2_dof"] = c->chi2_dof;
+      JsonNumber(c->rms_residual);
+  j["chi2_dof"] = JsonNumber(c->chi2_dof);
   return j;
 }
 
@@ -183,7 +166,7 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     if (a.json) return JsonRow(names[i], c, e).dump();
     return names[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
-              : c->BriefReport());
+              : c->BriefReport() + (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
   };
   // Lines come out in input order as soon as every earlier file is done.
   auto flush_ready = [&]() {
@@ -201,10 +184,6 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
       std::optional<Error> err;
       try {
         fit = Calibrate(Detect(inputs[i], a.detect), scene, opts);
-        if (fit->outcome != FitOutcome::kConverged) {
-          err = Error(ErrorCode::kFitFailed, names[i] + ": " + fit->message);
-          fit.reset();
-        }
       } catch (const Error& e) {
         err = e;
       } catch (const std::exception& e) {
@@ -213,8 +192,13 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
       std::lock_guard<std::mutex> lock(mu);
       fits[i] = std::move(fit);
       errors[i] = std::move(err);
+      std::string msg;
       if (errors[i]) {
-        std::string msg = errors[i]->what();
+        msg = errors[i]->what();
+      } else if (fits[i]->outcome != FitOutcome::kConverged) {
+        msg = std::string(FitOutcomeName(fits[i]->outcome)) + ": " + fits[i]->reason;
+      }
+      if (!msg.empty()) {
         if (msg.rfind(names[i], 0) != 0) msg = names[i] + ": " + msg;
         std::cerr << (progress ? "\r\033[K" : "") << "bouncecal: " << msg << "\n";
       }
@@ -235,8 +219,10 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
   if (!a.output.empty()) {
     WriteFileAtomically(a.output, summary, {.force = a.force, .inputs = a.files});
   }
-  const size_t failed = static_cast<size_t>(
-      std::count_if(errors.begin(), errors.end(), [](const auto& e) { return e.has_value(); }));
+  size_t failed = 0;
+  for (size_t i = 0; i < n; ++i) {
+    failed += errors[i] || fits[i]->outcome != FitOutcome::kConverged ? 1 : 0;
+  }
   if (failed > 0) {
     throw Error(ErrorCode::kSomeFailed,
                 std::to_string(failed) + " of " + std::to_string(n) + " recordings failed");
@@ -244,7 +230,18 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
   return 0;
 }
 
-void Run(const CalibrateArgs& a) {
+// Refuses a fit without a ball: its mass and size enter every contact law.
+void RequireBall(const GivenScene& gs) {
+  if (gs.ball_given) return;
+  const bool diameter = gs.Given("ball.diameter_m");
+  throw Error(ErrorCode::kBadScene,
+              std::string("calibrate: the ball's ") + (diameter ? "mass" : "size and mass") +
+                  " are not given (they enter the contact law, its default stiffness and the "
+                  "drag): give --scene FILE with a [ball] table, or --diameter M with --mass KG "
+                  "(or --density KG_M3, or --material NAME)");
+}
+
+CalibrationOptions Options(const CalibrateArgs& a, const GivenScene& gs) {
   CalibrationOptions opts;
   opts.strategy = ParseFitStrategy(a.strategy);
   opts.free_parameters = a.free;
@@ -254,9 +251,103 @@ void Run(const CalibrateArgs& a) {
   opts.loss = ParseRobustLoss(a.loss);
   opts.loss_scale_sigma = a.loss_scale;
   opts.max_iterations = a.max_iterations;
-  opts.use_drop = a.use_drop;
+  opts.max_starts = a.starts;
+  opts.estimate_scatter = !a.no_scatter;
+  opts.use_drop = gs.drop_given && !a.ignore_drop;
+  // Drag off by the user's explicit choice: no drag check.
+  opts.analysis.check_drag = !gs.Given("effects.drag");
   std::string err;
   if (!opts.IsValid(&err)) throw Error(ErrorCode::kUsage, err);
+  return opts;
+}
+
+// Defaults the result depends on: the scene's (AssumedValues) and the law's held parameters.
+std::vector<Assumed> AssumedFor(const GivenScene& gs, const Calibration& c) {
+  std::vector<Assumed> out = AssumedValues(gs, true);
+  for (const auto& p : c.parameters) {
+    if (p.fixed && !gs.Given("law.parameters." + p.name)) {
+      out.push_back({"law.parameters." + p.name, Num(p.value, 7) + " " + p.unit,
+                     "held at the law's default, not fitted"});
+    }
+  }
+  return out;
+}
+
+// The outcome as the exit code (the parameter file is written before).
+void ExitWithOutcome(const Calibration& c) {
+  if (c.outcome == FitOutcome::kConverged) return;
+  throw Error(FitOutcomeExitCode(c.outcome),
+              std::string("calibrate: outcome ") + FitOutcomeName(c.outcome) + ": " + c.reason);
+}
+
+void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const CalibrationOptions& opts,
+                   const std::vector<CalibrationInput>& inputs, const Provenance& prov,
+                   const nlohmann::json& options_json) {
+  auto rows = CompareLaws(inputs, gs.scene, opts, a.jobs);
+  const bool any = !rows.empty() && rows.front().adequate;
+  std::vector<double> speeds;
+  for (const auto& r : rows) {
+    if (r.fit.v_max_m_s > 0 && speeds.empty()) {
+      const Calibration& f = r.fit;
+      speeds = {f.v_min_m_s, std::sqrt(f.v_min_m_s * f.v_max_m_s), f.v_max_m_s};
+    }
+  }
+  std::vector<std::string> inadequate;
+  for (const auto& r : rows) {
+    if (!r.adequate) inadequate.push_back(r.fit.law + " (" + FitOutcomeName(r.fit.outcome) + ")");
+  }
+  if (a.json) {
+    nlohmann::json j = {{"schema", "bouncecal.law_comparison/1"}};
+    nlohmann::json laws = nlohmann::json::array();
+    int rank = 0;
+    for (const auto& r : rows) {
+      nlohmann::json l = ParamFileJson(r.fit, prov, options_json);
+      l["adequate"] = r.adequate;
+      l["rank"] = r.adequate ? nlohmann::json(++rank) : nlohmann::json();
+      l["delta_aic"] = JsonNumber(r.delta_aic);
+      laws.push_back(l);
+    }
+    j["laws"] = laws;
+    j["assumed"] = AssumedJson(AssumedValues(gs, true));
+    std::cout << j.dump(2) << "\n";
+  } else if (a.csv) {
+    std::cout << "rank,law,outcome,adequate,scatter_e,chi2_dof,aic,delta_aic,reason\n";
+    int rank = 0;
+    for (const auto& r : rows) {
+      const auto& c = r.fit;
+      std::cout << (r.adequate ? std::to_string(++rank) : "") << "," << c.law << ","
+                << FitOutcomeName(c.outcome) << "," << (r.adequate ? 1 : 0) << ","
+                << Num(c.scatter_e, 4) << "," << Num(c.chi2_dof, 6) << "," << Num(c.aic, 8) << ","
+                << Num(r.delta_aic, 6) << "," << CsvField(r.adequate ? "" : c.reason) << "\n";
+    }
+  } else {
+    std::cout << AssumedText(AssumedValues(gs, true)) << "law comparison ("
+              << FitStrategyName(opts.strategy)
+              << " fit of every law, full convergence; adequate fits ranked by AIC, the others "
+                 "listed with their outcome; e(v) at the lowest, middle and highest measured "
+                 "speed)\n"
+              << LawComparisonTable(rows, speeds) << "\n";
+    if (any) std::cout << "best: " << rows.front().fit.BriefReport() << "\n";
+    if (!inadequate.empty()) {
+      std::string list;
+      for (const auto& s : inadequate) list += (list.empty() ? "" : ", ") + s;
+      std::cout << "not adequate (not ranked): " << list << "\n";
+    }
+  }
+  std::cout << std::flush;
+  if (!any) {
+    throw Error(
+        ErrorCode::kFitFailed,
+        "no contact law fits these recordings adequately" +
+            (rows.empty() ? "" : ": " + rows.front().fit.law + ": " + rows.front().fit.reason));
+  }
+  if (!a.output.empty()) {
+    WriteParamFile(a.output, ParamFileJson(rows.front().fit, prov, options_json),
+                   {.force = a.force, .inputs = a.files});
+  }
+}
+
+void Run(const CalibrateArgs& a) {
   if (a.json && a.csv) throw Error(ErrorCode::kUsage, "--json and --csv: choose one");
   if (a.jobs < 1 || a.jobs > 256) {
     throw Error(ErrorCode::kUsage, "--jobs " + std::to_string(a.jobs) + ": expected 1..256");
@@ -265,98 +356,55 @@ void Run(const CalibrateArgs& a) {
   if (all && a.batch) throw Error(ErrorCode::kUsage, "--law all cannot be combined with --batch");
   SceneFlags sf = a.scene;
   if (all) sf.law.clear();
-  const Scene scene = ResolveScene(sf);
+  const GivenScene gs = ResolveGivenScene(sf);
+  RequireBall(gs);
+  const CalibrationOptions opts = Options(a, gs);
+  const Scene& scene = gs.scene;
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
-  MakeDetectOptions(a.detect);            // flag errors before any work
-  const auto inputs = PairInputs(a.files, a.detect);
+  MakeDetectOptions(a.detect);  // flag errors before any work
+  const auto pairs = PairInputs(a.files, a.detect);
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
+  const std::vector<Warning> unit_warnings = SceneUnitWarnings(scene, opts.use_drop);
 
   if (a.batch) {
-    const int rc = RunBatch(a, scene, opts, inputs);
+    PrintWarnings(unit_warnings);
+    const int rc = RunBatch(a, scene, opts, pairs);
     if (rc != 0) throw Error(ErrorCode::kSomeFailed, "some recordings failed");
     return;
   }
 
-  const std::vector<CalibrationInput> recordings = DetectAll(inputs, a.detect, a.jobs);
+  const std::vector<CalibrationInput> inputs = DetectAll(pairs, a.detect, a.jobs);
   const Provenance prov = MakeProvenance(a.files);
   const nlohmann::json options_json = OptionsJson(opts);
-
   if (all) {
-    auto rows = CompareLaws(recordings, scene, opts, a.jobs);
-    if (rows.empty() || rows.front().fit.outcome == FitOutcome::kFailed) {
-      throw Error(ErrorCode::kFitFailed, "no contact law could be fitted to these recordings" +
-                                             (rows.empty() ? "" : ": " + rows.front().fit.message));
-    }
-    const Calibration& best = rows.front().fit;
-    std::vector<double> speeds;
-    if (best.v_max_m_s > 0) {
-      speeds = {best.v_min_m_s, std::sqrt(best.v_min_m_s * best.v_max_m_s), best.v_max_m_s};
-    }
-    if (a.json) {
-      nlohmann::json j = {{"schema", "bouncecal.law_comparison/1"}};
-      nlohmann::json laws = nlohmann::json::array();
-      int rank = 0;
-      for (const auto& r : rows) {
-        nlohmann::json l;
-        if (r.fit.outcome == FitOutcome::kFailed) {
-          l = {{"law", r.fit.law}, {"fit", {{"outcome", "failed"}, {"message", r.fit.message}}}};
-        } else {
-          l = ParamFileJson(r.fit, prov, options_json);
-          l["delta_aic"] = r.delta_aic;
-        }
-        l["rank"] = ++rank;
-        laws.push_back(l);
-      }
-      j["laws"] = laws;
-      std::cout << j.dump(2) << "\n";
-    } else if (a.csv) {
-      std::cout << "rank,law,outcome,rms_residual,residual_unit,chi2_dof,aic,delta_aic,bic\n";
-      int rank = 0;
-      for (const auto& r : rows) {
-        const auto& c = r.fit;
-        std::cout << ++rank << "," << c.law << "," << FitOutcomeName(c.outcome) << ","
-                  << (c.outcome == FitOutcome::kFailed
-                          ? ",,,,,"
-                          : Num(c.rms_residual, 6) + "," + c.residual_unit + "," +
-                                Num(c.chi2_dof, 6) + "," + Num(c.aic, 8) + "," +
-                                Num(r.delta_aic, 6) + "," + Num(c.bic, 8))
-                  << "\n";
-      }
-    } else {
-      std::cout << "law comparison (" << FitStrategyName(opts.strategy)
-                << " fit, ranked by AIC at rtol " << opts.comparison_rel_tolerance
-                << ", best law refitted at rtol " << opts.rel_tolerance
-                << "; e(v) at the lowest, middle and highest measured speed)\n"
-                << LawComparisonTable(rows, speeds) << "\nbest: " << best.BriefReport() << "\n";
-    }
-    if (!a.output.empty() && best.outcome == FitOutcome::kConverged) {
-      WriteParamFile(a.output, ParamFileJson(best, prov, options_json),
-                     {.force = a.force, .inputs = a.files});
-    }
-    return;
+    PrintWarnings(unit_warnings);
+    return RunComparison(a, gs, opts, inputs, prov, options_json);
   }
 
-  const Calibration c = Calibrate(recordings, scene, opts);
-  const nlohmann::json doc = ParamFileJson(c, prov, options_json);
+  Calibration c = Calibrate(inputs, scene, opts);
+  c.warnings.insert(c.warnings.begin(), unit_warnings.begin(), unit_warnings.end());
+  const std::vector<Assumed> assumed = AssumedFor(gs, c);
+  nlohmann::json doc = ParamFileJson(c, prov, options_json);
+  doc["assumed"] = AssumedJson(assumed);
   if (a.json) {
     std::cout << doc.dump(2) << "\n";
   } else if (a.csv) {
-    std::cout << CsvHeader(CreateLaw(scene.law, scene)->Parameters()) << "\n"
-              << CsvRow(a.files.size() == 1 ? a.files[0] : "joint",
-                        CreateLaw(scene.law, scene)->Parameters(), &c, nullptr)
-              << "\n";
+    PrintWarnings(c.warnings);
+    const auto specs = CreateLaw(scene.law, scene)->Parameters();
+    std::cout << CsvHeader(specs) << "\n"
+              << CsvRow(a.files.size() == 1 ? a.files[0] : "joint", specs, &c, nullptr) << "\n";
   } else {
-    std::cout << c.FullReport();
+    PrintWarnings(c.warnings);
+    std::cout << AssumedText(assumed) << c.FullReport();
   }
   std::cout << std::flush;
-  if (c.outcome != FitOutcome::kConverged) {
-    throw Error(ErrorCode::kFitFailed, c.message + "; no parameter file written");
-  }
+  // The parameter file records every outcome (nothing is lost); the exit code tells scripts.
   if (!a.output.empty()) {
     WriteParamFile(a.output, doc, {.force = a.force, .inputs = a.files});
-    if (!a.json && !a.csv) std::cout << "wrote " << a.output << "\n";
+    if (!a.json && !a.csv) std::cout << "wrote " << a.output << "\n" << std::flush;
   }
+  ExitWithOutcome(c);
 }
 
 }  // namespace
@@ -369,7 +417,8 @@ void RegisterCalibrate(CLI::App& app) {
       ->required();
   AddSceneFlags(sub, &args->scene, true);
   sub->add_option("--strategy", args->strategy,
-                  "trajectory (fit simulated impact times) or restitution (fit e(v) points)");
+                  "restitution (per-bounce e with scatter; default) or trajectory (simulated "
+                  "impact times with the scatter propagated)");
   // One value per occurrence, so `--free k drop.wav` does not swallow the recording.
   sub->add_option("--free", args->free, "also fit this held parameter, e.g. k (repeatable)")
       ->allow_extra_args(false);
@@ -377,12 +426,14 @@ void RegisterCalibrate(CLI::App& app) {
       ->allow_extra_args(false);
   sub->add_option("--derivatives", args->derivatives, "auto (analytic where possible) or numeric");
   sub->add_option("--rtol", args->rtol, "simulator relative tolerance inside the fit");
-  sub->add_option("--loss", args->loss, "robust loss: huber, cauchy or none");
+  sub->add_option("--loss", args->loss, "robust loss on whitened residuals: none, huber, cauchy");
   sub->add_option("--loss-scale", args->loss_scale, "robust loss scale, in sigmas");
-  sub->add_option("--max-iterations", args->max_iterations, "solver iteration limit");
-  sub->add_flag(
-      "--use-drop", args->use_drop,
-      "hold the first impact speed at the scene's drop height/speed instead of fitting it");
+  sub->add_option("--max-iterations", args->max_iterations, "solver iteration limit per solve");
+  sub->add_option("--starts", args->starts, "start points tried (1 = the best guess only)");
+  sub->add_flag("--ignore-drop", args->ignore_drop,
+                "do not use the drop height/impact speed even when given");
+  sub->add_flag("--no-scatter", args->no_scatter,
+                "no per-bounce scatter: timing noise only (synthetic recordings)");
   AddDetectFlags(sub, &args->detect);
   sub->add_option("-o,--output", args->output, "write the parameter file (JSON) here");
   sub->add_flag("--force", args->force, "replace an existing output file");

@@ -49,6 +49,7 @@ struct SynthFlags {
   std::optional<double> e0, e_slope, e_power;
   std::optional<double> contact_s;
   std::optional<double> min_interval_s;
+  std::optional<double> scatter_e;
   std::optional<double> hum_hz, hum_db;
   std::optional<int> distractors;
   std::optional<double> distractor_db;
@@ -211,6 +212,10 @@ void Run(const SynthFlags& f) {
   }
   if (f.contact_s) spec.truth.contact_s = *f.contact_s;
   if (f.min_interval_s) spec.truth.min_interval_s = *f.min_interval_s;
+  if (f.scatter_e) {
+    spec.truth.scatter_e = *f.scatter_e;
+    spec.truth.scatter_seed = r.seed;  // the bounces change with --seed, like the noise
+  }
   if (f.hum_hz) r.hum_hz = *f.hum_hz;
   if (f.hum_db) r.hum_db = *f.hum_db;
   if (f.distractors) r.distractors = *f.distractors;
@@ -337,6 +342,8 @@ void RegisterSynth(CLI::App& app) {
   sub->add_option("--contact-s", flags->contact_s, "contact duration, s (default: Hertz)");
   sub->add_option("--min-interval", flags->min_interval_s,
                   "stop when the next interval would be shorter, s");
+  sub->add_option("--scatter-e", flags->scatter_e,
+                  "per-bounce restitution scatter of a real ball (sigma of e, e.g. 0.004)");
   sub->add_option("--hum", flags->hum_hz, "mains hum frequency (50 or 60 Hz; 0 = off)");
   sub->add_option("--hum-db", flags->hum_db, "hum level relative to the peak, dB");
   sub->add_option("--distractors", flags->distractors, "number of distractor clicks");

@@ -27,6 +27,13 @@ std::string Num(double v) {
   return buf;
 }
 
+double CheckNonNegative(const std::string& flag, double v) {
+  if (!(std::isfinite(v) && v >= 0.0)) {
+    throw Error(ErrorCode::kBadParameter, flag + ": must be finite and >= 0 (got " + Num(v) + ")");
+  }
+  return v;
+}
+
 double CheckPositive(const std::string& flag, double v) {
   if (!(std::isfinite(v) && v > 0.0)) {
     throw Error(ErrorCode::kBadParameter, flag + ": must be finite and > 0 (got " + Num(v) + ")");
@@ -46,6 +53,8 @@ std::string Trim(const std::string& s) {
 void AddSceneFlags(CLI::App* sub, SceneFlags* flags, bool with_law) {
   sub->add_option("--scene", flags->scene_file, "scene file (TOML); flags override it");
   sub->add_option("--height", flags->height_m, "drop height of the ball's bottom, m");
+  sub->add_option("--height-sigma", flags->height_sigma_m,
+                  "1-sigma uncertainty of the drop height, m (default: the height is exact)");
   sub->add_option("--impact-speed", flags->impact_speed_m_s,
                   "first impact speed instead of a height, m/s");
   sub->add_option("--diameter", flags->diameter_m, "ball diameter, m");
@@ -108,13 +117,32 @@ Scene ResolveScene(const SceneFlags& flags) {
     scene.ball.mass_kg = CheckPositive("--mass", *flags.mass_kg);
     scene.ball.density_kg_m3.reset();
   }
+  if (flags.height_sigma_m && flags.impact_speed_m_s) {
+    throw Error(ErrorCode::kBadParameter, "--height-sigma " + Num(*flags.height_sigma_m) +
+                                              " is the uncertainty of a drop height, but "
+                                              "--impact-speed " +
+                                              Num(*flags.impact_speed_m_s) +
+                                              " replaces the height");
+  }
   if (flags.height_m) {
     scene.drop.height_m = CheckPositive("--height", *flags.height_m);
     scene.drop.impact_speed_m_s.reset();
+    scene.drop.height_sigma_m.reset();  // the file's sigma belonged to the file's height
   }
   if (flags.impact_speed_m_s) {
     scene.drop.impact_speed_m_s = CheckPositive("--impact-speed", *flags.impact_speed_m_s);
     scene.drop.height_m.reset();
+    scene.drop.height_sigma_m.reset();
+  }
+  if (flags.height_sigma_m) {
+    CheckNonNegative("--height-sigma", *flags.height_sigma_m);
+    if (!flags.height_m && (flags.scene_file.empty() || !scene.drop.height_m)) {
+      throw Error(ErrorCode::kBadParameter,
+                  "--height-sigma " + Num(*flags.height_sigma_m) +
+                      ": the drop height it belongs to is not given (give --height, or a scene "
+                      "file with [drop] height_m)");
+    }
+    scene.drop.height_sigma_m = *flags.height_sigma_m;
   }
   if (!flags.drag.empty() && !ParseDragModel(flags.drag, &scene.effects.drag)) {
     throw Error(ErrorCode::kBadParameter,
@@ -165,6 +193,97 @@ Scene ResolveScene(const SceneFlags& flags) {
                     (flags.scene_file.empty() ? "" : " (after command-line overrides)"));
   }
   return scene;
+}
+
+}  // namespace bouncecal::cli
+
+namespace bouncecal::cli {
+
+GivenScene ResolveGivenScene(const SceneFlags& flags) {
+  GivenScene gs;
+  gs.scene = ResolveScene(flags);
+  if (!flags.scene_file.empty()) {
+    for (const std::string& k : SceneFileKeys(flags.scene_file)) gs.given.insert(k);
+  }
+  auto mark = [&](bool on, const char* key) {
+    if (on) gs.given.insert(key);
+  };
+  mark(flags.height_m.has_value(), "drop.height_m");
+  mark(flags.height_sigma_m.has_value(), "drop.height_sigma_m");
+  mark(flags.impact_speed_m_s.has_value(), "drop.impact_speed_m_s");
+  mark(flags.diameter_m.has_value(), "ball.diameter_m");
+  mark(flags.density_kg_m3.has_value(), "ball.density_kg_m3");
+  mark(flags.mass_kg.has_value(), "ball.mass_kg");
+  mark(!flags.material.empty(), "ball.material");
+  mark(!flags.drag.empty(), "effects.drag");
+  mark(flags.buoyancy, "effects.buoyancy");
+  mark(flags.contact_duration, "effects.contact_duration");
+  mark(flags.g_m_s2.has_value(), "environment.g_m_s2");
+  mark(!flags.law.empty() || !flags.expression.empty(), "law.name");
+  mark(!flags.expression.empty(), "law.expression");
+  for (const std::string& set : flags.law_sets) {
+    gs.given.insert("law.parameters." + Trim(set.substr(0, set.find('='))));
+  }
+  const Drop& d = gs.scene.drop;
+  gs.drop_given = (d.height_m && (gs.Given("drop.height_m"))) ||
+                  (d.impact_speed_m_s && gs.Given("drop.impact_speed_m_s"));
+  gs.ball_given =
+      gs.Given("ball.diameter_m") &&
+      (gs.Given("ball.mass_kg") || gs.Given("ball.density_kg_m3") || gs.Given("ball.material"));
+  return gs;
+}
+
+std::vector<Assumed> AssumedValues(const GivenScene& gs, bool for_calibration) {
+  std::vector<Assumed> out;
+  const Scene& s = gs.scene;
+  auto add = [&](const std::string& key, const std::string& value, const std::string& note) {
+    if (!gs.Given(key)) out.push_back({key, value, note});
+  };
+  add("environment.g_m_s2", Num(s.environment.g_m_s2), "gravity; the seed paper's value");
+  add("effects.drag", DragModelName(s.effects.drag), "air drag in the flights");
+  add("effects.buoyancy", s.effects.buoyancy ? "true" : "false", "buoyancy in the flights");
+  add("effects.contact_duration", s.effects.contact_duration ? "true" : "false",
+      "contact time taken out of the intervals");
+  const bool drag = s.effects.drag != DragModel::kNone;
+  if (drag || s.effects.buoyancy) {
+    add("environment.air_density_kg_m3", Num(s.environment.air_density_kg_m3),
+        "air (drag, buoyancy)");
+  }
+  if (drag)
+    add("environment.drag_coefficient", Num(s.environment.drag_coefficient), "smooth sphere");
+  if (gs.drop_given && s.drop.height_m && !s.drop.height_sigma_m) {
+    out.push_back({"drop.height_sigma_m", "0", "the drop height is taken as exact"});
+  }
+  const bool needs_ball =
+      for_calibration || drag || s.effects.buoyancy || s.effects.contact_duration;
+  if (needs_ball && !gs.ball_given) {
+    add("ball.diameter_m", Num(s.ball.diameter_m), "the ball (seed 002's steel ball)");
+    add("ball.density_kg_m3", Num(s.ball.Density()), "the ball's density");
+  }
+  if (s.effects.contact_duration || for_calibration) {
+    add("ball.material", s.ball.material, "elastic constants (Hertz stiffness, contact time)");
+    add("surface.material", s.surface.material,
+        "elastic constants (Hertz stiffness, contact time)");
+  }
+  if (for_calibration) {
+    add("law.name", s.law.name, "the contact law fitted");
+  }
+  return out;
+}
+
+nlohmann::json AssumedJson(const std::vector<Assumed>& assumed) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const Assumed& a : assumed)
+    out.push_back({{"key", a.key}, {"value", a.value}, {"note", a.note}});
+  return out;
+}
+
+std::string AssumedText(const std::vector<Assumed>& assumed) {
+  std::string out;
+  for (const Assumed& a : assumed) {
+    out += "assumed (not given): " + a.key + " = " + a.value + " (" + a.note + ")\n";
+  }
+  return out;
 }
 
 }  // namespace bouncecal::cli

@@ -30,6 +30,12 @@ const char* ErrorCodeName(ErrorCode code) {
       return "output";
     case ErrorCode::kSomeFailed:
       return "some_failed";
+    case ErrorCode::kFitIterationLimit:
+      return "iteration_limit";
+    case ErrorCode::kFitPoorFit:
+      return "poor_fit";
+    case ErrorCode::kFitNotDeterminable:
+      return "not_determinable";
   }
   return "unknown";
 }

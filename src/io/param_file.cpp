@@ -61,12 +61,19 @@ json OptionsJson(const CalibrationOptions& o) {
           {"loss", RobustLossName(o.loss)},
           {"loss_scale_sigma", o.loss_scale_sigma},
           {"max_iterations", o.max_iterations},
+          {"estimate_scatter", o.estimate_scatter},
           {"use_drop", o.use_drop},
           {"seed_from_inverse_map", o.seed_from_inverse_map},
+          {"max_starts", o.max_starts},
           {"e_of_v_points", o.e_of_v_points},
           {"undetermined_relative_sigma", o.undetermined_relative_sigma},
-          {"comparison_rel_tolerance", o.comparison_rel_tolerance},
-          {"comparison_max_iterations", o.comparison_max_iterations}};
+          {"poor_fit_p_value", o.poor_fit_p_value},
+          {"plausible_scatter_e", o.plausible_scatter_e},
+          {"analysis",
+           {{"irregular_alpha", o.analysis.irregular_alpha},
+            {"drop_z_max", o.analysis.drop_z_max},
+            {"check_drag", o.analysis.check_drag},
+            {"drag_effect_sigmas", o.analysis.drag_effect_sigmas}}}};
 }
 
 json ParamFileJson(const Calibration& c, const Provenance& prov, const json& options) {
@@ -94,15 +101,25 @@ json ParamFileJson(const Calibration& c, const Provenance& prov, const json& opt
               {"derivatives", DerivativeModeName(c.derivatives)},
               {"analytic_jacobian", c.analytic_jacobian},
               {"outcome", FitOutcomeName(c.outcome)},
+              {"exit_code", static_cast<int>(FitOutcomeExitCode(c.outcome))},
+              {"reason", c.reason},
               {"message", c.message},
+              {"scatter_e", Num(c.scatter_e)},
+              {"scatter_e_sigma", Num(c.scatter_e_sigma)},
+              {"scatter_e_is_upper_limit", c.scatter_at_zero},
               {rms_key, Num(c.rms_residual)},
               {"chi2", Num(c.chi2)},
               {"chi2_dof", Num(c.chi2_dof)},
               {"dof", c.dof},
               {"num_residuals", c.num_residuals},
               {"num_free", c.num_free},
+              {"trend_chi2", Num(c.trend_chi2)},
+              {"trend_dof", c.trend_dof},
+              {"neg_log_likelihood", Num(c.neg_log_likelihood)},
               {"aic", Num(c.aic)},
               {"bic", Num(c.bic)},
+              {"starts", c.starts},
+              {"starts_reached_best", c.starts_reached_best},
               {"iterations", c.iterations},
               {"simulations", c.simulations},
               {"v_min_m_s", Num(c.v_min_m_s)},
@@ -123,6 +140,13 @@ json ParamFileJson(const Calibration& c, const Provenance& prov, const json& opt
     recs.push_back(jr);
   }
   j["recordings"] = recs;
+  json warnings = json::array();
+  for (const Warning& w : c.warnings) {
+    warnings.push_back({{"code", w.code},
+                        {"message", w.message},
+                        {"impact", w.impact >= 0 ? json(w.impact) : json(nullptr)}});
+  }
+  j["warnings"] = warnings;
   j["scene"] = SceneJson(c.scene);
   // Every resolved physical value, for simulators and replays (param_resolved.hpp, issue 12).
   try {
@@ -185,6 +209,13 @@ ParamFile ReadParamFile(const std::string& path) {
   }
   if (doc.contains("fit") && doc["fit"].contains("outcome") && doc["fit"]["outcome"].is_string()) {
     pf.outcome = doc["fit"]["outcome"].get<std::string>();
+  }
+  if (doc.contains("warnings") && doc["warnings"].is_array()) {
+    for (const auto& w : doc["warnings"]) {
+      if (w.is_object() && w.contains("code") && w["code"].is_string()) {
+        pf.warnings.push_back(w["code"].get<std::string>());
+      }
+    }
   }
   pf.doc = std::move(doc);
   return pf;

@@ -29,6 +29,7 @@
 //   [drop]
 //   height_m = 0.2             # > 0, release height of the ball's bottom; or
 //   # impact_speed_m_s = 1.98  # > 0, first impact speed -- giving both is an error
+//   height_sigma_m = 0.01      # >= 0, 1-sigma of height_m (only with height_m); unset = exact
 //   first_impact_time_s = 0.0  # time of the first impact (simulation/synthesis)
 //
 //   [effects]                  # every effect is off unless turned on
@@ -305,6 +306,14 @@ void Validate(const Scene& s, Checker* checker) {
   }
   if (drop.height_m) c.Positive("drop.height_m", *drop.height_m);
   if (drop.impact_speed_m_s) c.Positive("drop.impact_speed_m_s", *drop.impact_speed_m_s);
+  if (drop.height_sigma_m) {
+    c.NonNegative("drop.height_sigma_m", *drop.height_sigma_m);
+    if (!drop.height_m) {
+      c.Fail("drop.height_sigma_m",
+             "is the uncertainty of drop.height_m, which is not given (got " +
+                 Num(*drop.height_sigma_m) + " m)");
+    }
+  }
   c.Finite("drop.first_impact_time_s", drop.first_impact_time_s);
   // Effects.
   if (effects.surface_compliance && surface.kind != Surface::Kind::kSpringMass) {
@@ -585,8 +594,10 @@ class SceneReader {
         s->drop.impact_speed_m_s = Positive(node, full);
       } else if (key == "first_impact_time_s") {
         s->drop.first_impact_time_s = Number(node, full);
+      } else if (key == "height_sigma_m") {
+        s->drop.height_sigma_m = NonNegative(node, full);
       } else {
-        Unknown(k, "drop", "height_m, impact_speed_m_s, first_impact_time_s");
+        Unknown(k, "drop", "height_m, height_sigma_m, impact_speed_m_s, first_impact_time_s");
       }
     }
     if (speed) s->drop.height_m.reset();
@@ -686,7 +697,9 @@ Scene ParseScene(const std::string& toml_text, const std::string& source) {
   return s;
 }
 
-Scene LoadSceneFile(const std::string& path) {
+namespace {
+
+std::string ReadSceneText(const std::string& path) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (ec || !std::filesystem::exists(status)) {
@@ -700,7 +713,31 @@ Scene LoadSceneFile(const std::string& path) {
   std::ostringstream text;
   text << in.rdbuf();
   if (in.bad()) throw Error(ErrorCode::kInputMissing, path + ": cannot read scene file");
-  return ParseScene(text.str(), path);
+  return text.str();
+}
+
+void CollectKeys(const toml::table& table, const std::string& prefix,
+                 std::vector<std::string>* keys) {
+  for (auto&& [k, node] : table) {
+    const std::string key = prefix + std::string(k.str());
+    if (node.is_table()) {
+      CollectKeys(*node.as_table(), key + ".", keys);
+    } else {
+      keys->push_back(key);
+    }
+  }
+}
+
+}  // namespace
+
+Scene LoadSceneFile(const std::string& path) { return ParseScene(ReadSceneText(path), path); }
+
+std::vector<std::string> SceneFileKeys(const std::string& path) {
+  const std::string text = ReadSceneText(path);
+  ParseScene(text, path);  // the same checks (and errors) as LoadSceneFile
+  std::vector<std::string> keys;
+  CollectKeys(toml::parse(text, path), "", &keys);
+  return keys;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -792,6 +829,7 @@ std::string SceneToToml(const Scene& s) {
   o << "drag_coefficient = " << TomlFloat(s.environment.drag_coefficient) << "\n";
   o << "\n[drop]\n";
   if (s.drop.height_m) o << "height_m = " << TomlFloat(*s.drop.height_m) << "\n";
+  if (s.drop.height_sigma_m) o << "height_sigma_m = " << TomlFloat(*s.drop.height_sigma_m) << "\n";
   if (s.drop.impact_speed_m_s) {
     o << "impact_speed_m_s = " << TomlFloat(*s.drop.impact_speed_m_s) << "\n";
   }

@@ -70,7 +70,13 @@ Rng Stream(std::uint64_t seed, std::uint64_t purpose, std::uint64_t index = 0) {
   Rng mix(seed ^ (purpose * 0xD1B54A32D192ED03ULL) ^ (index * 0x8CB92BA72F3D8DD7ULL));
   return Rng(mix.Next());
 }
-enum Purpose : std::uint64_t { kNoise = 1, kHum = 2, kDistractor = 3, kModeSpread = 4 };
+enum Purpose : std::uint64_t {
+  kNoise = 1,
+  kHum = 2,
+  kDistractor = 3,
+  kModeSpread = 4,
+  kScatter = 5
+};
 
 bool Finite(double v) { return std::isfinite(v); }
 
@@ -332,6 +338,9 @@ bool TruthOptions::IsValid(std::string* error) const {
   if (contact_s && !(*contact_s >= 0.0 && *contact_s < 0.1)) {
     return fail("contact_s = " + Num(*contact_s) + " (expected 0 <= contact_s < 0.1 s)");
   }
+  if (!(scatter_e >= 0.0 && scatter_e < 0.5)) {
+    return fail("scatter_e = " + Num(scatter_e) + " (expected 0 <= scatter_e < 0.5)");
+  }
   return true;
 }
 
@@ -372,12 +381,16 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
   }
   std::vector<TruthImpact> out;
   double t = t_first;
+  Rng scatter = Stream(options.scatter_seed, kScatter);
   for (int k = 0; k < scene.limits.max_impacts; ++k) {
-    const double e = model(v_in);
-    if (!(e >= 0.0 && e <= 1.0)) {
-      throw Error(ErrorCode::kBadParameter, "restitution model gives e = " + Num(e) +
+    const double e_model = model(v_in);
+    if (!(e_model >= 0.0 && e_model <= 1.0)) {
+      throw Error(ErrorCode::kBadParameter, "restitution model gives e = " + Num(e_model) +
                                                 " at v = " + Num(v_in) + " m/s (expected 0..1)");
     }
+    const double e = options.scatter_e > 0.0
+                         ? std::clamp(e_model + options.scatter_e * scatter.Normal(), 0.0, 1.0)
+                         : e_model;
     TruthImpact imp;
     imp.time_s = t;
     imp.v_in_m_s = v_in;
@@ -396,6 +409,51 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
   return out;
 }
 
+namespace {
+
+// ImpactsFromLaw with per-bounce scatter: contacts one by one, exact flights between them.
+std::vector<TruthImpact> ImpactsFromLawWithScatter(const Scene& scene, const ContactLaw& law,
+                                                   const std::vector<double>& params,
+                                                   const TruthOptions& options) {
+  if (scene.effects.surface_compliance) {
+    throw Error(ErrorCode::kBadParameter,
+                "truth options: scatter_e with truth from the law needs a rigid surface (the "
+                "surface compliance couples successive contacts)");
+  }
+  const FlightModel flight = FlightModel::FromScene(scene);
+  const ContactBody body = BodyFromScene(scene);
+  double v_in = scene.drop.impact_speed_m_s
+                    ? *scene.drop.impact_speed_m_s
+                    : flight.FallArrivalSpeed(scene.drop.height_m.value_or(0.0));
+  const double rest =
+      options.rest_speed_m_s > 0 ? options.rest_speed_m_s : scene.limits.rest_speed_m_s;
+  const double t_first = scene.drop.first_impact_time_s;
+  Rng scatter = Stream(options.scatter_seed, kScatter);
+  std::vector<TruthImpact> out;
+  double t = t_first;
+  for (int k = 0; k < scene.limits.max_impacts && v_in > 0.0; ++k) {
+    const ContactOutcome c =
+        SimulateContact(law, params, body, v_in, scene.EffectiveGravity(), SimulatorOptions{});
+    const double e =
+        c.stuck ? 0.0 : std::clamp(c.restitution + options.scatter_e * scatter.Normal(), 0.0, 1.0);
+    TruthImpact imp;
+    imp.time_s = t;
+    imp.v_in_m_s = v_in;
+    imp.v_out_m_s = e * v_in;
+    imp.contact_s = c.contact_time_s;
+    out.push_back(imp);
+    if (imp.v_out_m_s < rest || c.stuck) break;
+    const double interval = c.contact_time_s + flight.FlightTime(imp.v_out_m_s);
+    if (interval < options.min_interval_s) break;
+    if (t + interval - t_first > scene.limits.horizon_s) break;
+    t += interval;
+    v_in = flight.ArrivalSpeed(imp.v_out_m_s);
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<TruthImpact> ImpactsFromLaw(const Scene& scene, const TruthOptions& options) {
   std::string err;
   if (!scene.IsValid(&err)) throw Error(ErrorCode::kBadScene, err);
@@ -408,6 +466,7 @@ std::vector<TruthImpact> ImpactsFromLaw(const Scene& scene, const TruthOptions& 
   }
   const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
   const std::vector<double> params = law->ParameterValues();
+  if (options.scatter_e > 0.0) return ImpactsFromLawWithScatter(scene, *law, params, options);
   const Simulation sim = Simulate(scene, *law, params);
   if (sim.impacts.empty()) {
     throw Error(ErrorCode::kBadScene, "law " + scene.law.name + ": the simulation has no impact (" +
@@ -927,7 +986,9 @@ SynthResult Synthesize(const SynthSpec& spec) {
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
   nlohmann::json j = TruthJson(spec.scene, spec.render, result.recording, spec.name);
   j["truth_source"] = TruthSourceName(spec.truth_source);
-  nlohmann::json truth_opts = {{"min_interval_s", spec.truth.min_interval_s}};
+  nlohmann::json truth_opts = {{"min_interval_s", spec.truth.min_interval_s},
+                               {"scatter_e", spec.truth.scatter_e},
+                               {"scatter_seed", spec.truth.scatter_seed}};
   if (spec.truth_source == TruthSource::kLaw) {
     const std::unique_ptr<ContactLaw> law = CreateLaw(spec.scene.law, spec.scene);
     const std::vector<double> values = law->ParameterValues();

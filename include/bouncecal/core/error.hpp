@@ -26,9 +26,14 @@ enum class ErrorCode : int {
   kNoBounces = 7,     // no usable bounce sequence (noise only, a single impact, ...)
   kBadScene = 8,      // malformed scene or --impacts file, unknown key, bad or conflicting values
   kBadParameter = 9,  // unknown law/parameter, out-of-range or non-finite value
-  kFitFailed = 10,    // the fit did not converge or the data cannot determine the parameters
+  kFitFailed = 10,    // the fit failed: no usable result (fit outcome "failed")
   kOutput = 11,       // output path unusable (missing directory, exists without --force, ...)
   kSomeFailed = 12,   // batch mode: at least one input failed, the others were processed
+  // Fit outcomes other than "converged" (calibrate.hpp). The parameter file is still written
+  // and records the outcome; these codes keep scripts from taking it for a success.
+  kFitIterationLimit = 13,   // "iteration_limit": the solver stopped before an optimum
+  kFitPoorFit = 14,          // "poor_fit": the law is rejected by its own goodness of fit
+  kFitNotDeterminable = 15,  // "not_determinable": the data cannot pin a damping parameter
 };
 
 class Error : public std::runtime_error {

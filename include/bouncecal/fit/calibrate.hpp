@@ -1,34 +1,47 @@
 // bouncecal/fit/calibrate.hpp — fit a contact law's damping to measured impacts (Ceres).
 //
-// Two strategies, both exposed:
-//  - kTrajectory: simulate the whole bounce sequence (simulator.hpp, only the scene's effects)
-//    and fit the simulated impact times to the measured onsets, each weighted by its timing
-//    sigma. Nuisance parameters per recording: the time origin t0 (the release is silent) and
-//    the first impact speed v0 (unless the options hold it at the scene's drop).
-//  - kRestitution: fit the law's e(v) to the per-bounce (v_in, e ± e_sigma) points from
-//    AnalyzeBounces (closed form where the law has one, one simulated contact per point
-//    otherwise).
+// The error model (PHYSICS.md §6; scatter_model.hpp): a real ball's restitution scatters from
+// bounce to bounce, e_k = e(u_k; theta) + eps_k, eps_k ~ N(0, sigma_s^2), on top of the timing
+// noise of the onsets. sigma_s (reported as scatter_e with its sigma) is estimated with the
+// law's parameters theta by restricted maximum likelihood, so chi2/dof of the full model is ~1
+// when the law is right and the parameter sigmas include the scatter. Two strategies:
+//  - kRestitution (default): per bounce, the measured e_k (three onsets, with the scene's drag,
+//    buoyancy and contact duration) against the law's e at the measured arrival speed u_k;
+//    residuals per bounce with their full banded timing covariance (neighbours share onsets;
+//    u_k is measured too), so one irregular bounce does not shift the others. theta by
+//    generalized least squares alternating with the REML profile of sigma_s (sigma_s = 0 on a
+//    clean recording: the timing-only fit).
+//  - kTrajectory: the whole bounce sequence simulated (simulator.hpp) against the onsets, the
+//    scatter sigma_s of the restitution fit propagated along the trajectory (each bounce's eps
+//    moves every later impact): C = C_t + sigma_s^2 G G^T, G = dt/deps. Nuisances per
+//    recording: time origin t0 and first impact speed v0 (held, or tied to a stated drop
+//    height through its sigma). Started from the restitution fit and from other starts.
 // Several recordings are fitted jointly: shared law parameters, per-recording nuisances.
+// Bounces that the screen (bounce_screen.hpp) flags irregular, and a first impact whose stated
+// drop is inconsistent, are left out.
 //
-//   CalibrationOptions o;                  // damping parameters free, trajectory strategy
+//   CalibrationOptions o;                  // damping parameters free, restitution strategy
 //   o.free_parameters = {"k"};             // also free the stiffness
 //   std::vector<CalibrationInput> recs = {{"drop.wav", detection.main()}};
 //   Calibration c = Calibrate(recs, scene, o);   // scene.law names the law and its start values
 //   if (c.outcome == FitOutcome::kConverged) std::cout << c.FullReport();
 //
-// Derivatives: kAuto uses the law's analytic dE/dp (RestitutionGradient) chained through the
-// exact flight formulas where the law has it and the scene has no contact-duration or surface
-// effect; everything else uses central differences with a relative step rtol^(1/3) (the optimum
-// for a function whose own noise is ~rtol), above the simulator's noise by construction.
+// Outcomes (FitOutcome): converged; iteration_limit (the solver stopped at max_iterations, or
+// sigma_s did not settle); poor_fit (the law is rejected by its own goodness of fit: a residual
+// trend with speed at p < poor_fit_p_value, sigma_s beyond plausible_scatter_e, or trajectory
+// chi2 beyond its p < poor_fit_p_value quantile); not_determinable (the data cannot pin a free
+// damping parameter; says which and why); failed (no usable result). Data that defeat a fit
+// are outcomes with a one-line reason, not exceptions; bad input (options, scene, names)
+// throws Error. No wall-clock limit: results do not depend on the machine.
 //
-// Common mistakes: a constant-e law's stiffness does not change impact times (only the contact
-// duration, which is off unless the scene turns it on) — freeing k then reports it undetermined;
-// the detector's timing sigmas set the weights, so chi2/dof far from 1 means they are off (the
-// reported sigmas are scaled by sqrt(chi2/dof) when it exceeds 1).
+// Derivatives: kAuto uses the law's analytic de/dp (RestitutionGradient) where it has one (for
+// the trajectory: chained through the exact flight formulas when the scene has no
+// contact-duration or surface effect); everything else uses central differences with a
+// relative step rtol^(1/3), above the simulator's noise by construction.
 //
-// Errors: Error(kFitFailed) when the data cannot determine the free parameters (too few
-// impacts), when the law sticks at the start values, or when no step succeeds;
-// Error(kBadParameter) for an unknown law or parameter name.
+// Physical constraints in every fit: the law's parameter bounds (so e <= 1); for the
+// trajectory v0 >= the first rebound speed (e0 <= 1) and t0 within half the first interval of
+// the first detected impact.
 #pragma once
 
 #include <optional>
@@ -36,6 +49,9 @@
 #include <vector>
 
 #include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
+#include "bouncecal/core/warning.hpp"
+#include "bouncecal/fit/kinematics.hpp"
 #include "bouncecal/physics/scene.hpp"
 
 namespace bouncecal {
@@ -52,7 +68,7 @@ DerivativeMode ParseDerivativeMode(const std::string& s);
 RobustLoss ParseRobustLoss(const std::string& s);
 
 struct CalibrationOptions {
-  FitStrategy strategy = FitStrategy::kTrajectory;
+  FitStrategy strategy = FitStrategy::kRestitution;
   // Parameters freed in addition to the law's damping parameters (ParameterSpec::damping),
   // e.g. {"k"}. Unknown names: Error(kBadParameter).
   std::vector<std::string> free_parameters;
@@ -61,30 +77,40 @@ struct CalibrationOptions {
   DerivativeMode derivatives = DerivativeMode::kAuto;
   // Simulator relative tolerance inside the fit (absolute tolerance scales with it).
   double rel_tolerance = 1e-9;
-  // Robust loss on each residual (in units of its sigma) with this scale, in sigmas.
-  RobustLoss loss = RobustLoss::kHuber;
+  // Robust loss on each whitened residual (in units of its sigma) with this scale, in sigmas.
+  // Off by default: the scatter model and the bounce screen handle irregular bounces; with a
+  // loss, sigmas and chi2 are those of the plain Gaussian model at the robust optimum.
+  RobustLoss loss = RobustLoss::kNone;
   double loss_scale_sigma = 3.0;
-  int max_iterations = 60;  // Levenberg-Marquardt iterations
-  // Trajectory: hold the first impact speed at the scene's drop (height or impact speed)
-  // instead of fitting it as a nuisance parameter. Restitution: include the first impact's
-  // e (from the drop height) among the points.
-  bool use_drop = false;
+  int max_iterations = 100;  // Levenberg-Marquardt iterations per solve
+  // Estimate the per-bounce scatter sigma_s; false: sigma_s = 0 (timing noise only).
+  bool estimate_scatter = true;
+  // Use the scene's drop (height with its sigma, or impact speed) for the first impact when it
+  // is consistent with the next bounces: its e becomes a data point (restitution), v0 is tied to
+  // it (trajectory). The CLI turns this off when the user gave no drop.
+  bool use_drop = true;
+  // The kinematics and the bounce screen (irregular bounces, drop consistency, drag check).
+  AnalysisOptions analysis;
   // Start values: seed damping from DampingForRestitution at the median measured e.
   bool seed_from_inverse_map = true;
+  // Start points tried (the best fit wins; others that end elsewhere with an equally good fit
+  // give starts_disagree). 1 = only the best guess.
+  int max_starts = 4;
   // Number of points of the e(v) table over the measured speed range.
   int e_of_v_points = 8;
   // A free parameter whose relative 1-sigma exceeds this (or that lies in the numerical null
   // space of the Jacobian) is reported undetermined.
   double undetermined_relative_sigma = 1.0;
-  // Law comparison (CompareLaws): every law is ranked with this simulator tolerance and
-  // iteration limit (ranking needs far less precision than the result), then the best law is
-  // refitted with rel_tolerance and max_iterations.
+  // Goodness of fit: the model is rejected (poor_fit) when a test's p-value is below this ...
+  double poor_fit_p_value = 1e-3;
+  // ... or when sigma_s exceeds this by more than two of its sigmas: real balls scatter by
+  // 0.005-0.03 (PHYSICS.md §6, misfit of the law included); beyond 0.05 the law does not
+  // describe the bounces, or they are not one ball's bounces.
+  double plausible_scatter_e = 0.05;
   // Trajectory start values of the nuisances per recording (first impact speed, time origin);
   // empty: estimated from the first interval and the first onset.
   std::vector<double> start_impact_speeds_m_s;
   std::vector<double> start_time_origins_s;
-  double comparison_rel_tolerance = 1e-7;
-  int comparison_max_iterations = 25;
   bool IsValid(std::string* error) const;
 };
 
@@ -95,11 +121,16 @@ struct CalibrationInput {  // one recording
 };
 
 enum class FitOutcome {
-  kConverged,        // usable: every free damping parameter is determined
-  kNotDeterminable,  // converged, but a free damping parameter is not determined by the data
-  kFailed,           // no usable result (solver failure, law sticks at the optimum, ...)
+  kConverged,        // usable: converged, every free damping parameter determined, fit adequate
+  kIterationLimit,   // the solver stopped at the iteration limit: not at an optimum
+  kPoorFit,          // the law is rejected by its own goodness of fit
+  kNotDeterminable,  // a free damping parameter is not determined by the data
+  kFailed,           // no usable result (solver failure, the law sticks, ...)
 };
-const char* FitOutcomeName(FitOutcome o);  // "converged", "not_determinable", "failed"
+// "converged", "iteration_limit", "poor_fit", "not_determinable", "failed"
+const char* FitOutcomeName(FitOutcome o);
+// The process exit code of an outcome (error.hpp): 0, 13, 14, 15, 10.
+ErrorCode FitOutcomeExitCode(FitOutcome o);
 
 struct FittedParameter {
   std::string name;
@@ -137,50 +168,64 @@ struct Calibration {
   std::string law;      // registry name
   std::string formula;  // the law's one-line formula and its source (paper + equation)
   std::string source;
-  FitStrategy strategy = FitStrategy::kTrajectory;
+  FitStrategy strategy = FitStrategy::kRestitution;
   DerivativeMode derivatives = DerivativeMode::kAuto;
   bool analytic_jacobian = false;  // kAuto found an analytic path for this law/scene
   FitOutcome outcome = FitOutcome::kFailed;
-  std::string message;                      // why, when not converged; notes otherwise
+  std::string reason;                       // one line: why this outcome
+  std::string message;                      // notes (start values, starts, ...)
+  std::vector<Warning> warnings;            // coded diagnostics (README lists the codes)
   std::vector<FittedParameter> parameters;  // every law parameter, in the law's order
   std::vector<RecordingFit> recordings;
   std::vector<EOfVPoint> e_of_v;            // over the measured speed range
   double v_min_m_s = 0.0, v_max_m_s = 0.0;  // measured impact speed range
+  // Per-bounce scatter sigma_s of e and its 1-sigma (a one-sided 68 % upper limit when
+  // scatter_e is 0, scatter_at_zero).
+  double scatter_e = 0.0;
+  double scatter_e_sigma = 0.0;
+  bool scatter_at_zero = false;
   int num_residuals = 0;
-  int num_free = 0;  // free parameters including nuisances
+  int num_free = 0;  // free parameters including nuisances (not sigma_s)
   int dof = 0;
-  double chi2 = 0.0;  // sum of squared weighted residuals (no robust loss)
-  double chi2_dof = 0.0;
-  double rms_residual = 0.0;    // s (trajectory) or e (restitution)
-  std::string residual_unit;    // "s" or "1"
-  double aic = 0.0, bic = 0.0;  // chi2 + 2 k, chi2 + k ln n (Gaussian, known sigmas)
+  double chi2 = 0.0;          // r^T C^-1 r of the full model (timing + scatter)
+  double chi2_dof = 0.0;      // ~1 when the model is right
+  double rms_residual = 0.0;  // s (trajectory) or e (restitution)
+  std::string residual_unit;  // "s" or "1"
+  double trend_chi2 = 0.0;    // lack-of-fit statistic (residual trend with speed), trend_dof
+  int trend_dof = 0;
+  double neg_log_likelihood = 0.0;  // Gaussian -log L at the optimum
+  double aic = 0.0, bic = 0.0;      // 2 nll + 2 k, 2 nll + k ln n (k: law parameters + sigma_s)
+  int starts = 0;                   // start points tried
+  int starts_reached_best = 0;      // of which ended at the best fit
   int iterations = 0;
   long simulations = 0;  // simulator calls (sequences or contacts)
   double solve_time_s = 0.0;
-  std::string solver_report;  // ceres BriefReport
-  Scene scene;                // the scene with the fitted law parameters
+  Scene scene;  // the scene with the fitted law parameters (drop cleared when not used)
 
   std::vector<std::string> Determined() const;    // free law parameters with a finite sigma
   std::vector<std::string> Undetermined() const;  // law parameters the data cannot pin
-  // One line: "walton-braun: gamma = 0.4081 ± 0.0012, rms 3.1 us, chi2/dof 1.02 (converged)".
+  // One line: "walton-braun: gamma = 0.4081 ± 0.0012, scatter 0.004, chi2/dof 1.02 (converged)".
   std::string BriefReport() const;
-  // Parameters ± sigma with units, nuisances, fit statistics, determined/undetermined, e(v).
+  // Parameters ± sigma with units, scatter, nuisances, fit statistics, determined/undetermined,
+  // e(v), warnings.
   std::string FullReport() const;
 };
 
 // Fits scene.law (its parameters are start values and the held values) to the recordings.
-// Throws Error(kFitFailed / kBadParameter / kBadScene) as described above.
+// Bad input throws Error(kUsage / kBadParameter / kBadScene); what the data do to the fit is
+// the outcome.
 Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Scene& scene,
                       const CalibrationOptions& options);
 
-// Law comparison: fits every registered law (starting from its defaults; the "expression" law
-// only when scene.law names it with an expression) and returns them ranked by AIC, best first.
-// A law whose fit throws gets outcome kFailed and its message; the others still run. Ranking
-// fits use comparison_rel_tolerance / comparison_max_iterations; the best is refitted with the
-// full options (rows[0].fit is that refit). `jobs` laws are fitted concurrently.
+// Law comparison: fits every registered law as a single Calibrate would (same options, starting
+// from its defaults; the "expression" law only when scene.law names it with an expression) and
+// ranks the adequate fits (outcome converged) by AIC, best first; the others follow, each with
+// its outcome and reason. `jobs` laws are fitted concurrently (the output does not depend on
+// it).
 struct LawComparisonRow {
   Calibration fit;
-  double delta_aic = 0.0;  // AIC - best AIC
+  bool adequate = false;   // converged: ranked
+  double delta_aic = 0.0;  // AIC - best adequate AIC (NaN when not adequate)
 };
 std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& recordings,
                                           const Scene& scene, const CalibrationOptions& options,

@@ -7,10 +7,16 @@
 //    "law": "walton-braun", "formula": "...", "source": "...",
 //    "parameters": {"gamma": {"value", "sigma", "unit", "fixed", "determined", "lower", "upper"}},
 //    "e_of_v": [{"v_m_s", "e", "sigma"}, ...],          // over the measured speed range
-//    "fit": {"strategy", "derivatives", "outcome", "message", "rms_residual_s" (trajectory) or
-//            "rms_residual_e" (restitution), "chi2", "chi2_dof", "dof", "num_residuals",
-//            "num_free", "aic", "bic", "iterations", "simulations", "v_min_m_s", "v_max_m_s",
+//    "fit": {"strategy", "derivatives", "outcome" (converged | iteration_limit | poor_fit |
+//            not_determinable | failed), "exit_code", "reason" (one line), "message",
+//            "scatter_e", "scatter_e_sigma", "scatter_e_is_upper_limit",
+//            "rms_residual_s" (trajectory) or "rms_residual_e" (restitution), "chi2",
+//            "chi2_dof" (full model: timing + scatter), "dof", "num_residuals", "num_free",
+//            "trend_chi2", "trend_dof", "neg_log_likelihood", "aic", "bic", "starts",
+//            "starts_reached_best", "iterations", "simulations", "v_min_m_s", "v_max_m_s",
 //            "determined": [...], "undetermined": [...]},
+//    "warnings": [{"code", "message", "impact"}],       // coded diagnostics (README)
+//    "assumed": [{"key", "value", "note"}],            // added by the CLI: defaults used
 //    "recordings": [{"path", "impacts", "simulated_impacts", "impact_speed_m_s",
 //                    "impact_speed_sigma_m_s", "impact_speed_fixed", "time_origin_s",
 //                    "time_origin_sigma_s", "rms_residual_s" | "rms_residual_e"}],
@@ -60,7 +66,8 @@ struct ParamFile {
   LawSpec law;                          // name + fitted/held parameter values (+ expression)
   std::map<std::string, double> sigma;  // per parameter; absent when null
   std::string outcome;
-  nlohmann::json doc;  // the whole object
+  std::vector<std::string> warnings;  // warning codes
+  nlohmann::json doc;                 // the whole object
 };
 // Reads and checks a parameter file: schema version, law, parameter values.
 // Missing file: Error(kInputMissing); not JSON, wrong schema, missing or mistyped keys:

@@ -71,7 +71,10 @@ struct Environment {
 struct Drop {
   std::optional<double> height_m = 0.2;    // release height of the ball's bottom above the plate
   std::optional<double> impact_speed_m_s;  // first impact speed, instead of a height
-  double first_impact_time_s = 0.0;        // time origin of the first impact (simulation)
+  // 1-sigma uncertainty of height_m (only with a height); unset: the height is taken as exact
+  // (calibrate/analyze then report that assumption).
+  std::optional<double> height_sigma_m;
+  double first_impact_time_s = 0.0;  // time origin of the first impact (simulation)
   friend bool operator==(const Drop&, const Drop&) = default;
 };
 
@@ -136,5 +139,9 @@ Scene LoadSceneFile(const std::string& path);
 Scene ParseScene(const std::string& toml_text, const std::string& source);
 // Writes a scene as TOML that LoadSceneFile reads back to the same Scene.
 std::string SceneToToml(const Scene& scene);
+// The dotted keys a scene file sets ("ball.diameter_m", "drop.height_m", "law.parameters.A",
+// ...), so that callers can tell given values from defaults (a scene file without [drop] means
+// the drop is unknown to analyze/calibrate). Same errors as LoadSceneFile.
+std::vector<std::string> SceneFileKeys(const std::string& path);
 
 }  // namespace bouncecal

@@ -75,6 +75,11 @@ struct TruthOptions {
   double rest_speed_m_s = 0.0;
   // Contact duration of every impact; unset: Hertz estimate from the scene's materials.
   std::optional<double> contact_s;
+  // Per-bounce restitution scatter of a real ball (PHYSICS.md §6): each bounce's e is
+  // e(v_in) + scatter_e * N(0, 1), clamped to [0, 1], the normal deviates drawn from
+  // scatter_seed (same seed -> same bounces). 0: every bounce follows e(v) exactly.
+  double scatter_e = 0.0;
+  std::uint64_t scatter_seed = 1;
   bool IsValid(std::string* error) const;
 };
 
@@ -105,6 +110,9 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
 // interval would be shorter than options.min_interval_s or whose rebound speed is below the
 // rest speed (or where the simulator stopped: at rest, stuck, horizon, max_impacts).
 // options.contact_s must be unset (the law sets the contact durations).
+// With options.scatter_e > 0 the sequence is built bounce by bounce instead: each contact
+// simulated alone (SimulateContact, gravity on; its e plus the scatter deviate, its contact
+// time), then the exact flight to the next impact (flight.hpp). No surface compliance then.
 // Throws Error(kBadScene / kBadParameter) for an invalid scene, law, parameter or options.
 std::vector<TruthImpact> ImpactsFromLaw(const Scene& scene, const TruthOptions& options = {});
 

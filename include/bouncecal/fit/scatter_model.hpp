@@ -1,0 +1,119 @@
+// bouncecal/fit/scatter_model.hpp — the per-bounce scatter error model (PHYSICS.md §6).
+//
+// Real balls do not bounce identically: bounce k's restitution is e_k = e(u_k; theta) + eps_k with
+// eps_k ~ N(0, sigma_s^2) independent (a random effect), on top of the timing noise of the
+// onsets. For n measured points with residuals r = model - measured, Jacobian J = dr/dtheta and
+// timing covariance C_t (banded: neighbouring restitutions share onsets), the residuals have
+//   C(sigma_s) = C_t + sigma_s^2 G G^T
+// with G the map from the per-bounce scatter eps to the measured quantity (the identity for
+// per-bounce restitution; dt/deps for impact times). theta and sigma_s are estimated by
+// restricted maximum likelihood (REML, Patterson & Thompson, Biometrika 58 (1971) 545):
+//   minimise  1/2 [ log det C + log det(J^T C^-1 J) + r~^T C^-1 r~ ]
+// over sigma_s >= 0, where r~ are the residuals after the generalized-least-squares step of
+// theta at that sigma_s (linearised: r~ = r + J dtheta). The log det J^T C^-1 J term is what
+// keeps sigma_s from being biased low with ~10-30 bounces (plain ML divides by n instead of
+// n - p). Parameter covariance: (J^T C^-1 J)^-1 at the optimum; chi2 = r~^T C^-1 r~ ~ n - p.
+//
+//   ScatterProblem sp(r, J, C_t, {});           // G = identity
+//   ScatterFit f = sp.Fit();                    // f.sigma, f.sigma_sigma, f.step, f.covariance
+//
+// RestitutionData is the measured side of the per-bounce model: each point's measured arrival
+// speed u and restitution e with their derivatives with respect to the onsets (and the drop
+// height), from which TimingCovariance builds C_t for a given model slope de/du at each point
+// (the model is evaluated at the measured speed, which carries timing noise too).
+#pragma once
+
+#include <array>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "bouncecal/fit/kinematics.hpp"
+
+namespace bouncecal {
+
+// One measured restitution point: bounce `bounce` of recording `recording`.
+struct RestitutionPoint {
+  int recording = 0;
+  int bounce = 0;        // Bounce::index
+  double u_m_s = 0.0;    // measured arrival speed
+  double e = 0.0;        // measured restitution
+  double e_sigma = 0.0;  // timing (and height) sigma of e alone
+  // Global onset indices of t_{k-1}, t_k, t_{k+1} (-1: none) and the derivatives of e and u.
+  std::array<int, 3> onset{-1, -1, -1};
+  std::array<double, 3> de_dt{0.0, 0.0, 0.0};
+  std::array<double, 3> du_dt{0.0, 0.0, 0.0};
+  // First impact with the speed from a stated drop height: derivatives with respect to it.
+  bool from_drop = false;
+  double de_dh = 0.0, du_dh = 0.0;
+};
+
+struct RestitutionData {
+  std::vector<RestitutionPoint> points;
+  std::vector<double> onset_sigma_s;   // per global onset
+  std::vector<double> height_sigma_m;  // per recording (0: exact or no drop)
+
+  int size() const { return static_cast<int>(points.size()); }
+  // Covariance of the residuals r_k = e_model(u_k) - e_k from the timing (and height) noise,
+  // for model slopes de/du at each point (first order; Eq. in the file comment of scatter_model).
+  Eigen::MatrixXd TimingCovariance(const std::vector<double>& model_slopes) const;
+  // The points for which keep[k] is true (same onsets and heights).
+  RestitutionData Subset(const std::vector<bool>& keep) const;
+};
+
+// The points of one analysed recording with a finite e and arrival speed, appended to `data`
+// as recording `recording` (onsets numbered after those already in data). include_first: keep
+// bounce 0 when its arrival speed comes from the drop. Points flagged irregular are kept (the
+// caller decides).
+void AppendRestitutionPoints(const Analysis& analysis, int recording, bool include_first,
+                             RestitutionData* data);
+
+struct ScatterOptions {
+  bool reml = true;      // REML (unbiased sigma_s for small n); false: plain maximum likelihood
+  int grid_points = 48;  // log-spaced search grid before the golden-section refinement
+  bool IsValid(std::string* error) const;
+};
+
+struct ScatterFit {
+  bool ok = false;
+  double sigma = 0.0;  // sigma_s
+  // 1-sigma of sigma_s from the curvature of the criterion; when sigma_s is 0 (the timing noise
+  // explains the scatter) the one-sided 68 % upper limit instead (sigma_at_zero = true).
+  double sigma_sigma = std::numeric_limits<double>::quiet_NaN();
+  bool sigma_at_zero = false;
+  Eigen::VectorXd step;             // linearised GLS update of the parameters at sigma_s
+  Eigen::MatrixXd covariance;       // (J^T C^-1 J)^-1 at sigma_s
+  double chi2 = 0.0;                // r~^T C^-1 r~ after the step
+  double criterion = 0.0;           // the minimised REML (or ML) criterion
+  double neg_log_likelihood = 0.0;  // Gaussian -log L (ML form, with n/2 log 2 pi), for AIC
+};
+
+class ScatterProblem {
+ public:
+  // r: residuals (model - measured, n), J: n x p, timing_cov: n x n, design G: n x m (empty:
+  // the identity, m = n).
+  ScatterProblem(Eigen::VectorXd r, Eigen::MatrixXd J, Eigen::MatrixXd timing_cov,
+                 Eigen::MatrixXd design = {}, ScatterOptions options = {});
+
+  struct Evaluation {
+    bool ok = false;
+    double criterion = 0.0, chi2 = 0.0, log_det_c = 0.0, log_det_info = 0.0;
+    Eigen::VectorXd step;
+    Eigen::MatrixXd covariance;
+  };
+  Evaluation At(double sigma) const;  // criterion and GLS step at one sigma_s
+  ScatterFit Fit() const;             // sigma_s minimising the criterion (and its sigma)
+  Eigen::MatrixXd Covariance(double sigma) const;  // C(sigma)
+
+ private:
+  Eigen::VectorXd r_;
+  Eigen::MatrixXd j_, ct_, ggt_;
+  ScatterOptions options_;
+  double scale_ = 1.0;  // typical sigma_s scale: sqrt(median C_t / median (G G^T))
+};
+
+// Two-sided normal quantile z with P(|Z| > z) = alpha (alpha in (0, 1)).
+double NormalQuantileTwoSided(double alpha);
+
+}  // namespace bouncecal

@@ -1,0 +1,186 @@
+// The stages of Calibrate (calibrate.hpp), each testable on its own (tests/calibrate_stages_test):
+//   1. SetUpProblem   the law with its free parameters, each recording's analysed bounces
+//                     (kinematics + screen), the per-bounce data the fit uses
+//   2. MakeStarts     start vectors: the law's inverse map at the median measured e, a scan of
+//                     the damping, the scene's values
+//   3. SolveRestitution / SolveTrajectory
+//                     per-bounce restitution with scatter (GLS for theta alternating with REML
+//                     for sigma_s) / impact times with the scatter propagated along the
+//                     trajectory; each from every start, keeping the best
+//   4. Uncertainty    identifiability, parameter covariance, e(v) band
+//   5. Diagnose       outcome and its reason, goodness of fit, coded warnings
+// Internal to the fit wing: include "fit/calibrate_stages.hpp" (src/ is on the tests' path).
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "bouncecal/core/warning.hpp"
+#include "bouncecal/fit/calibrate.hpp"
+#include "bouncecal/fit/kinematics.hpp"
+#include "bouncecal/fit/scatter_model.hpp"
+#include "bouncecal/physics/contact_law.hpp"
+#include "bouncecal/physics/simulator.hpp"
+
+namespace bouncecal::calib {
+
+// ---- Stage 1: problem set-up ----------------------------------------------------------------
+
+// The law with its parameter layout: which entries of the full vector are free.
+struct LawSetup {
+  std::shared_ptr<const ContactLaw> law;
+  ContactBody body;
+  std::vector<double> start;    // full parameter vector (start and held values)
+  std::vector<int> free;        // indices into start of the free parameters
+  std::vector<double> typical;  // magnitude per full index, for steps and scaling
+  // Ceres sees each free parameter scaled by its typical magnitude (x = scale * u), so that
+  // stiffnesses of 1e9 and dimensionless dampings of 0.4 give a well-conditioned J^T J.
+  std::vector<double> scale;  // per free parameter
+  bool has_gradient = false;  // RestitutionGradient works
+  bool has_closed_e = false;  // Restitution works
+
+  const std::vector<ParameterSpec>& specs() const { return law->Parameters(); }
+  std::vector<double> Full(const double* u) const;  // free values (scaled) -> full vector
+  std::vector<double> Scaled(const std::vector<double>& p) const;  // full -> free (scaled)
+};
+
+// Throws Error(kBadParameter) for an unknown law or parameter name (bad input).
+LawSetup MakeLawSetup(const Scene& scene, const CalibrationOptions& options);
+
+// Restitution at one speed: closed form when the law has it, one simulated contact (with
+// gravity g during the contact) otherwise. Throws Error when the simulator fails.
+double ModelRestitution(const LawSetup& s, const std::vector<double>& p, double v_m_s, double g,
+                        const SimulatorOptions& sim, std::atomic<long>* simulations);
+
+// Relative central-difference step for a function whose own noise is ~rtol: rtol^(1/3).
+double RelativeStep(double rtol);
+
+struct RecordingData {
+  std::string name;
+  Sequence sequence;
+  Analysis analysis;       // kinematics with the screen (scatter, irregular, drop)
+  bool drop_used = false;  // the first impact's speed comes from the scene's drop (consistent)
+};
+
+struct FitProblem {
+  CalibrationOptions options;
+  Scene scene;
+  LawSetup setup;
+  double g = 9.8;  // effective gravity (during contacts too)
+  SimulatorOptions sim;
+  std::vector<RecordingData> recordings;
+  RestitutionData data;                   // the per-bounce points the fit uses
+  std::vector<Warning> warnings;          // from the analyses
+  std::string not_determinable;           // set when the data cannot determine the free parameters
+  double e_median = 0.0, v_median = 0.0;  // of the points, for seeding
+  double scatter_start = 0.0;             // sigma_s from the screens (start of the fit)
+  std::string seed_note;                  // how the start values were chosen
+};
+
+// Stage 1. Bad input throws (kUsage options, kBadScene scene, kBadParameter names); what the
+// data cannot give is recorded in not_determinable.
+FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const Scene& scene,
+                        const CalibrationOptions& options);
+// The kinematics and screen of every recording, and the per-bounce data. law_contact: when the
+// scene has the contact-duration effect and the law a closed-form contact time, take the
+// contacts out of the intervals with the law's own durations at these parameters (else the
+// Hertz estimate).
+void AnalyzeRecordings(FitProblem* problem, const std::vector<CalibrationInput>& recordings,
+                       const std::vector<double>* law_contact);
+
+// ---- Stage 2: starts ------------------------------------------------------------------------
+
+// Full parameter vectors to start from, best guess first, without duplicates.
+std::vector<std::vector<double>> MakeStarts(FitProblem* problem, std::atomic<long>* simulations);
+
+// ---- Stage 3: solve -------------------------------------------------------------------------
+
+struct Solution {
+  bool ok = false;
+  std::string failure;        // why not ok (a message naming the law and the problem)
+  std::vector<double> p;      // full parameter vector
+  std::vector<bool> held;     // per free parameter: held at its start (undetermined)
+  ScatterFit scatter;         // sigma_s and the GLS quantities at the optimum
+  Eigen::VectorXd residuals;  // model - measured (e for restitution, s for trajectory)
+  Eigen::MatrixXd jacobian;   // d residuals / d u (scaled free parameters, then nuisances)
+  Eigen::MatrixXd timing_cov;
+  Eigen::MatrixXd design;  // scatter design G (empty: identity)
+  double cost = 0.0;       // 1/2 chi2 at the start's sigma_s (compares starts)
+  int iterations = 0;
+  bool iteration_limit = false;
+  std::string limit_note;
+  // Trajectory nuisances per recording.
+  std::vector<double> v0, t0, v0_sigma, t0_sigma;
+  std::vector<bool> v0_free;
+  std::vector<int> simulated_impacts;
+  std::vector<std::vector<double>> v_in;  // simulated arrival speeds per recording
+};
+
+struct StartsReport {
+  int tried = 0;
+  int reached_best = 0;   // starts ending within the best's sigma
+  bool disagree = false;  // another start ends elsewhere with an equally good fit
+  std::string note;
+};
+
+// Per-bounce restitution with scatter from one start; sigma_start is the starting sigma_s.
+// alternate = false: one solve at sigma_start, with the timing covariance and the gravity
+// offsets taken at `reference` (so that solves from different starts are comparable).
+Solution SolveRestitution(const FitProblem& problem, const std::vector<double>& start,
+                          const std::vector<bool>& held, double sigma_start, bool alternate,
+                          std::atomic<long>* simulations,
+                          const std::vector<double>* reference = nullptr);
+// Impact times with the scatter sigma_s propagated along the trajectory, from one start.
+Solution SolveTrajectory(const FitProblem& problem, const std::vector<double>& start,
+                         const std::vector<bool>& held, double sigma_s,
+                         std::atomic<long>* simulations);
+// Runs the strategy's solver from every start; the best (lowest cost) first.
+Solution SolveFromStarts(const FitProblem& problem, const std::vector<std::vector<double>>& starts,
+                         const std::vector<bool>& held, StartsReport* report,
+                         std::atomic<long>* simulations);
+
+// ---- Stage 4: uncertainty -------------------------------------------------------------------
+
+struct Uncertainty {
+  std::vector<bool> undetermined;             // per free parameter
+  std::vector<std::string> undetermined_why;  // per free parameter (empty when determined)
+  std::vector<bool> held_determinable;        // per full index: a held parameter the data could fit
+  Eigen::MatrixXd covariance;                 // of the free parameters, in their own units
+  std::vector<double> sigma;                  // per full index (NaN when held/undetermined)
+  std::vector<EOfVPoint> e_of_v;
+  double v_min_m_s = 0.0, v_max_m_s = 0.0;
+};
+
+// Which free parameters the whitened Jacobian cannot determine (null space, or relative sigma
+// above the threshold), each with a reason.
+std::vector<bool> FindUndetermined(const Solution& s, const FitProblem& problem,
+                                   std::vector<std::string>* why);
+Uncertainty EstimateUncertainty(const FitProblem& problem, const Solution& s,
+                                std::atomic<long>* simulations);
+
+// ---- Stage 5: diagnostics -------------------------------------------------------------------
+
+struct Diagnosis {
+  FitOutcome outcome = FitOutcome::kConverged;
+  std::string reason;  // one line
+  std::vector<Warning> warnings;
+  double trend_chi2 = 0.0;  // lack-of-fit statistic of the restitution model (see Diagnose)
+  int trend_dof = 0;
+};
+
+Diagnosis Diagnose(const FitProblem& problem, const Solution& s, const Uncertainty& u,
+                   const StartsReport& starts);
+
+// Lack of fit of the per-bounce model: Wald test of an extra trend a ln(u) + b ln(u)^2 in the
+// residuals, with sigma_s re-estimated under that alternative. Returns chi2 (dof degrees of
+// freedom); trend_rms is the rms change of the predictions the trend makes, scale the scatter
+// about law-plus-trend combined with the median timing sigma of e.
+double TrendChi2(const FitProblem& problem, const Solution& s, int* dof, double* trend_rms,
+                 double* scale);
+
+}  // namespace bouncecal::calib

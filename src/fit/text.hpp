@@ -1,0 +1,24 @@
+// Number and list formatting shared by the fit wing's reports and messages (internal).
+#pragma once
+
+#include <iomanip>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace bouncecal::fit_text {
+
+// v with `prec` significant digits (std::ostream's default float format).
+inline std::string Fmt(double v, int prec = 6) {
+  std::ostringstream os;
+  os << std::setprecision(prec) << v;
+  return os.str();
+}
+
+inline std::string Join(const std::vector<std::string>& v, const char* sep = ", ") {
+  std::string out;
+  for (size_t i = 0; i < v.size(); ++i) out += (i ? sep : "") + v[i];
+  return out;
+}
+
+}  // namespace bouncecal::fit_text

@@ -65,6 +65,7 @@
 #include <toml++/toml.h>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 
 namespace bouncecal {
 
@@ -140,6 +141,12 @@ std::string Num(double v) {
   return buf;
 }
 
+// The law's registry row says whether it is defined by an expression (no name checks here).
+bool NeedsExpression(const std::string& law_name) {
+  const LawInfo* row = FindLaw(law_name);
+  return row != nullptr && row->needs_expression;
+}
+
 std::string KnownMaterials() {
   std::string s;
   for (const MaterialPreset& p : MaterialPresets()) s += (s.empty() ? "" : ", ") + p.name;
@@ -186,6 +193,33 @@ double Surface::ResolvedPoissonRatio() const {
   if (poisson_ratio) return *poisson_ratio;
   const MaterialPreset* p = FindMaterial(material);
   return p ? p->poisson_ratio : kNaN;
+}
+
+std::optional<double> EffectiveModulusPa(const Scene& scene, std::string* why) {
+  struct Body {
+    const char* key;
+    const std::string& material;
+    double youngs_pa, poisson;
+  };
+  const Body bodies[] = {
+      {"ball", scene.ball.material, scene.ball.ResolvedYoungsModulusPa(),
+       scene.ball.ResolvedPoissonRatio()},
+      {"surface", scene.surface.material, scene.surface.ResolvedYoungsModulusPa(),
+       scene.surface.ResolvedPoissonRatio()},
+  };
+  double compliance_per_pa = 0.0;  // 1/E*
+  for (const Body& b : bodies) {
+    if (!(std::isfinite(b.youngs_pa) && b.youngs_pa > 0.0 && b.poisson > -1.0 &&
+          b.poisson <= 0.5)) {
+      if (why) {
+        *why = std::string(b.key) + ".youngs_modulus_pa/poisson_ratio: unknown for material \"" +
+               b.material + "\"";
+      }
+      return std::nullopt;
+    }
+    compliance_per_pa += (1.0 - b.poisson * b.poisson) / b.youngs_pa;
+  }
+  return 1.0 / compliance_per_pa;
 }
 
 double Scene::EffectiveGravity() const {
@@ -325,12 +359,12 @@ void Validate(const Scene& s, Checker* checker) {
     if (name.empty()) c.Fail("law.parameters", "empty parameter name");
     c.Finite("law.parameters." + name, value);
   }
-  if (law.name == "expression" && law.expression.empty()) {
-    c.Fail("law.expression", "missing: law \"expression\" needs a force expression");
+  if (NeedsExpression(law.name) && law.expression.empty()) {
+    c.Fail("law.expression", "missing: law \"" + law.name + "\" needs a force expression");
   }
-  if (law.name != "expression" && !law.expression.empty()) {
-    c.Fail("law.expression",
-           "only allowed with law.name = \"expression\" (got name \"" + law.name + "\")");
+  if (!NeedsExpression(law.name) && !law.expression.empty()) {
+    c.Fail("law.expression", "only allowed with law.name = \"" + ExpressionLawName() +
+                                 "\" (got name \"" + law.name + "\")");
   }
   // Limits.
   c.Positive("limits.horizon_s", limits.horizon_s);
@@ -637,15 +671,17 @@ class SceneReader {
       }
     }
     const toml::node* expr = t.get("expression");
-    if (expr && !s->law.expression.empty() && s->law.name != "expression") {
+    if (expr && !s->law.expression.empty() && !NeedsExpression(s->law.name)) {
       if (!t.contains("name")) {
-        s->law.name = "expression";
+        s->law.name = ExpressionLawName();
       } else {
-        Fail(*expr, "law.expression", "only allowed with law.name = \"expression\"");
+        Fail(*expr, "law.expression",
+             "only allowed with law.name = \"" + ExpressionLawName() + "\"");
       }
     }
-    if (s->law.name == "expression" && s->law.expression.empty()) {
-      Fail(t.source(), "law.expression", "missing: law \"expression\" needs a force expression");
+    if (NeedsExpression(s->law.name) && s->law.expression.empty()) {
+      Fail(t.source(), "law.expression",
+           "missing: law \"" + s->law.name + "\" needs a force expression");
     }
   }
 

@@ -10,11 +10,13 @@
 #include <sstream>
 
 #include "physics/dopri5.hpp"
+#include "physics/scalar.hpp"
 
 namespace bouncecal {
 namespace {
 
 using dopri5::ValueOf;
+using scalar::Quotient;
 
 constexpr int kMaxLawState = 7;
 // Event times are located to this relative precision (in units of the contact time).
@@ -86,6 +88,7 @@ class System {
         plate_(plate),
         sc_(scales),
         n_state_(dyn.StateSize()),
+        continues_(dyn.ContinuesBelowZero()),
         s0_(kBig ? 5 : 3),
         inv_mass_(1.0 / body.mass_kg),
         accel_scale_(scales.time_s / scales.speed_m_s),
@@ -139,15 +142,21 @@ class System {
     return ph;
   }
 
-  // The law's force on the current branch, extended continuously past delta = 0 by
-  // F(0, delta') so that the dense output around an end event stays smooth.
+  // The overlap the law is asked at: past delta = 0 the law's own continuation if it has one,
+  // else 0 (the force is then extended by F(0, delta')), so that the dense output around an
+  // end event stays continuous.
+  template <class S>
+  S Overlap(const S& delta) const {
+    return continues_ ? delta : Clamp0(delta);
+  }
+  // The law's force on the current branch.
   template <class S>
   S Force(const PhysN<S, N>& ph) const {
-    return dyn_.ForceOnBranch(Clamp0(ph.delta), ph.delta_dot, ph.state.data(), positive_branch_);
+    return dyn_.ForceOnBranch(Overlap(ph.delta), ph.delta_dot, ph.state.data(), positive_branch_);
   }
   template <class S>
   S Switch(const PhysN<S, N>& ph) const {
-    return dyn_.Switch(Clamp0(ph.delta), ph.delta_dot, ph.state.data());
+    return dyn_.Switch(Overlap(ph.delta), ph.delta_dot, ph.state.data());
   }
   double PlateEnergy(const PhysN<double, N>& ph) const {
     if (!plate_) return 0.0;
@@ -173,15 +182,15 @@ class System {
     if constexpr (kBig) {
       if (plate_) {
         dt[3] = x[4];
-        dt[4] = sc_.time_s / sc_.speed_m_s *
-                (f - plate_->stiffness_n_m * ph.z - plate_->damping_n_s_m * ph.zd) /
-                plate_->mass_kg;  // M z'' = F - K z - C z'
+        dt[4] = Quotient(sc_.time_s / sc_.speed_m_s *
+                             (f - plate_->stiffness_n_m * ph.z - plate_->damping_n_s_m * ph.zd),
+                         plate_->mass_kg);  // M z'' = F - K z - C z'
       }
     }
     if (n_state_ > 0) {
       std::array<S, (N > 4 ? kMaxLawState : 1)> rate{};
-      dyn_.StateRate(Clamp0(ph.delta), ph.delta_dot, ph.state.data(), rate.data());
-      for (int i = 0; i < n_state_; ++i) dt[s0_ + i] = sc_.time_s * rate[i] / sc_.state[i];
+      dyn_.StateRate(Overlap(ph.delta), ph.delta_dot, ph.state.data(), rate.data());
+      for (int i = 0; i < n_state_; ++i) dt[s0_ + i] = Quotient(sc_.time_s * rate[i], sc_.state[i]);
     }
   }
 
@@ -223,7 +232,7 @@ class System {
       rho = (q_ * up) / x[1];
     }
     const S yd = x[1] * sc_.speed_m_s;
-    const S f = dyn_.ForceOnBranch(Clamp0(delta), yd, nullptr, positive_branch_);
+    const S f = dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
     dx = std::array<S, N>{};
     dx[0] = phase_ == Phase::kMiddle ? x[1] : rho;
     dx[1] = accel_scale_ * (g_ - f * inv_mass_) * rho;
@@ -243,6 +252,7 @@ class System {
   const PlateModel* plate_;
   Scales sc_;
   int n_state_;
+  bool continues_;
   size_t s0_;
   // Constant factors of the right-hand side (multiplications instead of divisions per call).
   double inv_mass_;     // 1/m*, 1/kg
@@ -438,8 +448,9 @@ class ContactIntegration {
     const double u0 = indep_;
     TrackPeaks(u0, u0 + h_, Values(x_), Values(x_new_));
     Commit();
+    CheckStuck();
+    if (done_) return;
     const PhysN<double, N> ph = sys_.Unscale(Values(x_), indep_);
-    if (ph.tau > options_.max_contact_time_factor) return Stuck(ph, StuckKind::kTooLong, 0.0);
     if (ph.delta_dot < kApproachEndSpeed * Scale().speed_m_s) ToTime();
   }
 
@@ -494,9 +505,10 @@ class ContactIntegration {
   void AfterExitStep() {
     TrackPeaks(indep_, indep_ + h_, Values(x_), Values(x_new_));
     Commit();
+    CheckStuck();
+    if (done_) return;
     const PhysN<double, N> ph = sys_.Unscale(Values(x_), indep_);
     if (indep_ == 0.0) return Separated(x_, indep_, x_[0]);
-    if (ph.tau > options_.max_contact_time_factor) return Stuck(ph, StuckKind::kTooLong, 0.0);
     if (std::abs(ph.delta_dot) < kExitSpeedFloor * exit_entry_speed_ * Scale().speed_m_s) {
       exit_disabled_ = true;  // a creeping ball: the stuck tests live in the time phase
       ToTime();
@@ -754,7 +766,7 @@ void ContactIntegration<T, N>::FinishAtEnd(double t, double t_end) {
     const PhysN<double, N> pe = sys_.Unscale(xv, t_end);
     const double rate = pe.delta_dot / Scale().speed_m_s;
     if (rate < 0.0) {
-      dtau = -delta_jet / rate;
+      dtau = Quotient(-delta_jet, rate);
       const bool apply = std::abs(ValueOf(dtau)) < 1e-3 * (t_end - t) && AllFinite(xe);
       if (!apply) dtau = DerivativePart(dtau);
     }
@@ -797,7 +809,7 @@ void ContactIntegration<T, N>::RestartOnOtherBranch(double t, double t_w, const 
     auto state = ph.state;
     sys_.dynamics().AtSwitch(Clamp0(ph.delta), state.data());
     for (int i = 0; i < sys_.StateCount(); ++i) {
-      xw[sys_.StateOffset() + i] = state[i] / Scale().state[i];
+      xw[sys_.StateOffset() + i] = Quotient(state[i], Scale().state[i]);
     }
   }
   sys_.SetBranch(!sys_.positive_branch());
@@ -816,35 +828,34 @@ void ContactIntegration<T, N>::RestartOnOtherBranch(double t, double t_w, const 
 template <class T, size_t N>
 void ContactIntegration<T, N>::CheckStuck() {
   const ValueState xv = Values(x_), fv = Values(f_);
-  const double t = indep_;
-  // Creeping: the ball moves slower than stuck_speed and its acceleration cannot change that
-  // within a contact time (overdamped: delta' never returns to 0). Cheap, every step.
+  const bool in_time = sys_.phase() == Phase::kMiddle;
+  const PhysN<double, N> pc = sys_.Unscale(xv, indep_);
+  // Creeping (time phase): the ball moves slower than stuck_speed and its acceleration cannot
+  // change that within a contact time (overdamped: delta' never returns to 0). Cheap.
   const double v_stuck = options_.stuck_speed_m_s / Scale().speed_m_s;
-  const bool creeping = std::abs(xv[1]) < v_stuck && std::abs(fv[1]) < v_stuck;
+  const bool creeping = in_time && std::abs(xv[1]) < v_stuck && std::abs(fv[1]) < v_stuck;
   // Sliding on the switch surface: repeated switches without progress (Walton-Braun's ball
   // resting under gravity between its loading and unloading equilibria).
-  const bool sliding = stalled_switches_ >= 4;
-  // Energy: the mechanical energy left (ball kinetic + potential relative to first touch +
-  // elastic + plate + the law's internal buffer) bounds the speed the ball can leave with, at
-  // any moment of the contact (energy only leaves the system). Cheap precheck: elastic, plate
-  // and internal energies are >= 0, so the ball's own energy must already be below the
-  // threshold. (A stiff overdamped contact creeps at its numerical stability limit, where the
-  // acceleration test of `creeping` is not reliable; this test is.)
+  const bool sliding = in_time && stalled_switches_ >= 4;
+  // Energy (every phase): the mechanical energy left (ball kinetic + potential relative to
+  // first touch + elastic + plate + the law's internal buffer) bounds the speed the ball can
+  // leave with, at any moment of the contact (energy only leaves the system). Cheap precheck:
+  // elastic, plate and internal energies are >= 0, so the ball's own energy must already be
+  // below the threshold. (A stiff overdamped contact creeps at its numerical stability limit,
+  // where the acceleration test of `creeping` is not reliable; this test is.)
   const double stuck_energy =
       0.5 * body_.mass_kg * options_.stuck_speed_m_s * options_.stuck_speed_m_s;
-  const double y_m = xv[0] * Scale().length_m, yd_m_s = xv[1] * Scale().speed_m_s;
-  const double ball_j = 0.5 * body_.mass_kg * yd_m_s * yd_m_s - body_.mass_kg * g_ * y_m;
-  const PhysN<double, N> pc = sys_.Unscale(xv, t);
+  const double ball_j = sys_.BallEnergy(pc);
   double e_left = 0.0;
   bool energy_gone = false;
   if (stuck_energy > 0.0 && ball_j < stuck_energy) {
-    e_left = sys_.BallEnergy(pc) + sys_.Elastic(pc) + sys_.PlateEnergy(pc) + sys_.Internal(pc);
+    e_left = ball_j + sys_.Elastic(pc) + sys_.PlateEnergy(pc) + sys_.Internal(pc);
     energy_gone = e_left < stuck_energy && pc.delta > 0.0;
   }
   if (sliding) return Stuck(pc, StuckKind::kSliding, 0.0);
   if (creeping) return Stuck(pc, StuckKind::kCreeping, 0.0);
   if (energy_gone) return Stuck(pc, StuckKind::kEnergy, e_left);
-  if (t > options_.max_contact_time_factor) return Stuck(pc, StuckKind::kTooLong, 0.0);
+  if (pc.tau > options_.max_contact_time_factor) return Stuck(pc, StuckKind::kTooLong, 0.0);
 }
 
 // Time for the exit phase: the ball moves out and the overlap is below 0.7 of its peak.

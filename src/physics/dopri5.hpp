@@ -17,12 +17,14 @@
 #include <cmath>
 #include <cstddef>
 
+#include "physics/scalar.hpp"
+
 namespace bouncecal::dopri5 {
 
-inline double ValueOf(double x) { return x; }
-template <class J>
-double ValueOf(const J& x) {
-  return x.a;
+using scalar::Value;
+template <class T>
+double ValueOf(const T& x) {
+  return Value(x);
 }
 
 // Butcher tableau (HNW Table II.5.2) and the error weights e_i = b_i - b^_i.
@@ -43,6 +45,35 @@ inline constexpr double kD1 = -12715105075.0 / 11282082432, kD3 = 87487479700.0 
                         kD4 = -10690763975.0 / 1880347072, kD5 = 701980252875.0 / 199316789632,
                         kD6 = -1453857185.0 / 822651844, kD7 = 69997945.0 / 29380423;
 
+// out = x + h (c_1 k_1 + ... + c_M k_M), component by component, in one pass: for a ceres::Jet
+// the value and the derivative parts are summed separately over raw arrays (Jet operators would
+// create and copy a temporary per operation: 40 % of a sensitivity run before this).
+template <size_t M>
+inline void Combine(double& out, const double& x, double h, const std::array<double, M>& c,
+                    const std::array<const double*, M>& k) {
+  double sum = 0.0;
+  for (size_t m = 0; m < M; ++m) sum += c[m] * *k[m];
+  out = x + h * sum;
+}
+template <size_t M, class J>
+inline void Combine(J& out, const J& x, double h, const std::array<double, M>& c,
+                    const std::array<const J*, M>& k) {
+  double sum = 0.0;
+  for (size_t m = 0; m < M; ++m) sum += c[m] * k[m]->a;
+  constexpr int kN = static_cast<int>(decltype(x.v)::RowsAtCompileTime);
+  double v[kN];
+  const double* xv = x.v.data();
+  for (int j = 0; j < kN; ++j) v[j] = xv[j];
+  for (size_t m = 0; m < M; ++m) {
+    const double s = h * c[m];
+    const double* kv = k[m]->v.data();
+    for (int j = 0; j < kN; ++j) v[j] += s * kv[j];
+  }
+  out.a = x.a + h * sum;
+  double* ov = out.v.data();
+  for (int j = 0; j < kN; ++j) ov[j] = v[j];
+}
+
 // One integrator: the stages of the last step are kept for its dense output.
 // Sys: void operator()(const State& x, State& dxdt, double t) const.
 template <class T, size_t N>
@@ -57,26 +88,27 @@ class Stepper {
   void Step(const Sys& sys, const State& x, const State& f, double t, double h, State& x1,
             State& f1, std::array<double, N>& err, size_t n) {
     State tmp{};
-    for (size_t i = 0; i < n; ++i) tmp[i] = x[i] + h * (kA21 * f[i]);
+    for (size_t i = 0; i < n; ++i) Combine<1>(tmp[i], x[i], h, {kA21}, {&f[i]});
     sys(tmp, k2_, t + kC2 * h);
-    for (size_t i = 0; i < n; ++i) tmp[i] = x[i] + h * (kA31 * f[i] + kA32 * k2_[i]);
+    for (size_t i = 0; i < n; ++i) Combine<2>(tmp[i], x[i], h, {kA31, kA32}, {&f[i], &k2_[i]});
     sys(tmp, k3_, t + kC3 * h);
     for (size_t i = 0; i < n; ++i) {
-      tmp[i] = x[i] + h * (kA41 * f[i] + kA42 * k2_[i] + kA43 * k3_[i]);
+      Combine<3>(tmp[i], x[i], h, {kA41, kA42, kA43}, {&f[i], &k2_[i], &k3_[i]});
     }
     sys(tmp, k4_, t + kC4 * h);
     for (size_t i = 0; i < n; ++i) {
-      tmp[i] = x[i] + h * (kA51 * f[i] + kA52 * k2_[i] + kA53 * k3_[i] + kA54 * k4_[i]);
+      Combine<4>(tmp[i], x[i], h, {kA51, kA52, kA53, kA54}, {&f[i], &k2_[i], &k3_[i], &k4_[i]});
     }
     sys(tmp, k5_, t + kC5 * h);
     for (size_t i = 0; i < n; ++i) {
-      tmp[i] = x[i] + h * (kA61 * f[i] + kA62 * k2_[i] + kA63 * k3_[i] + kA64 * k4_[i] +
-                           kA65 * k5_[i]);
+      Combine<5>(tmp[i], x[i], h, {kA61, kA62, kA63, kA64, kA65},
+                 {&f[i], &k2_[i], &k3_[i], &k4_[i], &k5_[i]});
     }
     sys(tmp, k6_, t + h);
     x1 = State{};
     for (size_t i = 0; i < n; ++i) {
-      x1[i] = x[i] + h * (kB1 * f[i] + kB3 * k3_[i] + kB4 * k4_[i] + kB5 * k5_[i] + kB6 * k6_[i]);
+      Combine<5>(x1[i], x[i], h, {kB1, kB3, kB4, kB5, kB6},
+                 {&f[i], &k3_[i], &k4_[i], &k5_[i], &k6_[i]});
     }
     sys(x1, f1, t + h);
     err.fill(0.0);
@@ -107,43 +139,43 @@ class Stepper {
 };
 
 // PI step-size control (HNW §IV.2, eq. 2.43c; as in Hairer's DOPRI5): after a step with error
-// norm err (accepted if <= 1), the factor to multiply h by.
+// norm err (accepted if <= 1), the factor to multiply h by:
+//   accepted: clamp(0.9 / (err^(0.2 - 0.75 beta) / err_prev^beta), 0.2, 10), no growth right
+//             after a rejection;   rejected: 1 / min(5, err^(0.2 - 0.75 beta) / 0.9).
+// Evaluated in single precision through log2/exp2 (one of each per step): a step-size heuristic
+// needs no more, and pow in double was 10 % of a Hertz contact's time.
 class Controller {
  public:
-  // Factor for the next step; updates the memory of the last accepted error.
+  // Factor for the next step; remembers this step's error.
   double Accepted(double err) {
-    double fac = Factor(err);
+    const float log_err = std::log2(static_cast<float>(std::clamp(err, 1e-30, 1e30)));
+    const float log_prev = previous_log_;
+    previous_log_ = std::log2(static_cast<float>(std::max(err, 1e-4)));
+    double fac = std::exp2(kExponentF * log_err - kBetaF * log_prev) / kSafety;  // h / h_new
+    fac = 1.0 / std::clamp(fac, 1.0 / kMaxFactor, 1.0 / kMinFactor);
     if (last_rejected_) fac = std::min(fac, 1.0);
-    previous_term_ = std::pow(static_cast<float>(std::max(err, 1e-4)), kBetaF);
     last_rejected_ = false;
     return fac;
   }
   double Rejected(double err) {
     last_rejected_ = true;
-    const double grow = std::pow(static_cast<float>(std::min(err, 1e30)), kExponentF);
+    const float log_err = std::log2(static_cast<float>(std::min(err, 1e30)));
+    const double grow = std::exp2(kExponentF * log_err);
     return 1.0 / std::min(1.0 / kMinFactor, grow / kSafety);
   }
   void Reset() {
-    previous_term_ = kInitialTerm;
+    previous_log_ = kInitialLog;
     last_rejected_ = false;
   }
 
  private:
   static constexpr double kBeta = 0.04;
-  static constexpr double kExponent = 0.2 - 0.75 * kBeta;
-  static constexpr float kExponentF = static_cast<float>(kExponent);
   static constexpr float kBetaF = static_cast<float>(kBeta);
+  static constexpr float kExponentF = static_cast<float>(0.2 - 0.75 * kBeta);
   static constexpr double kSafety = 0.9;
   static constexpr double kMinFactor = 0.2, kMaxFactor = 10.0;
-  double Factor(double err) const {
-    // Single precision is plenty for a step-size heuristic and twice as fast as pow.
-    const double fac = std::pow(static_cast<float>(std::max(err, 1e-30)), kExponentF) /
-                       previous_term_ / kSafety;  // h_new = h / fac
-    return 1.0 / std::clamp(fac, 1.0 / kMaxFactor, 1.0 / kMinFactor);
-  }
-  // previous accepted error^beta (the memory of the PI controller); 1e-4^beta at the start.
-  static constexpr double kInitialTerm = 0.69183097091893653;  // 1e-4^0.04
-  double previous_term_ = kInitialTerm;
+  static constexpr float kInitialLog = -13.287712f;  // log2(1e-4): the memory at the start
+  float previous_log_ = kInitialLog;
   bool last_rejected_ = false;
 };
 

@@ -8,7 +8,8 @@
 //   density_kg_m3 = 7800.0     # > 0; or mass_kg (> 0) -- giving both is an error
 //   # mass_kg = 0.00408
 //   material = "steel"         # preset: sets density (unless density/mass given), E and nu
-//   youngs_modulus_pa = 2.0e11 # > 0, overrides the preset (used by Hertz laws, contact time)
+//   youngs_modulus_pa = 2.0e11 # > 0, overrides the preset (used by Hertz laws, contact time;
+//                              # they need E and nu of ball AND surface: EffectiveModulusPa)
 //   poisson_ratio = 0.29       # in (-1, 0.5]
 //
 //   [surface]
@@ -39,7 +40,8 @@
 //
 //   [law]
 //   name = "walton-braun"      # registry name (bouncecal laws)
-//   expression = ""            # force expression, only with name = "expression"
+//   expression = ""            # force expression, only for a law whose registry row needs one
+//                              # ("expression"); an expression without a name selects that law
 //   [law.parameters]           # NAME = number; missing ones take the law's defaults
 //   k = 1.0e7
 //   gamma = 0.5

@@ -14,6 +14,7 @@
 #include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/flight.hpp"
+#include "physics/scalar.hpp"
 
 namespace bouncecal {
 namespace {
@@ -29,6 +30,7 @@ std::string Num(double v) {
 
 double Val(double x) { return x; }
 double Val(const Jet& x) { return x.a; }
+using scalar::Quotient;
 
 // The flight's closed forms in either scalar type (the Jet by their exact derivatives).
 double FlightTimeOf(const FlightModel& f, double v0) { return f.FlightTime(v0); }
@@ -367,7 +369,7 @@ Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double
     }
     using std::sqrt;
     const T v0 = sqrt(v0_sq);
-    const T t_launch = t + contact.contact_s + (g > 0.0 ? (v_sep - v0) / g : T(0.0));
+    const T t_launch = t + contact.contact_s + (g > 0.0 ? Quotient(v_sep - v0, g) : T(0.0));
     const T flight_s = FlightTimeOf(flight, v0);
     const T v_next = ArrivalSpeedOf(flight, v0);
     const T t_next = t_launch + flight_s;

@@ -11,7 +11,8 @@
 // p-derivatives), the remaining slots are free for the caller (the integrator uses slot P for
 // the impact speed). The user expression law (muParser, double only) differences itself.
 //
-// Conventions: delta >= 0 (the integrator clamps it), rate = delta_dot (> 0 loading); "branch"
+// Conventions: delta >= 0 (the integrator clamps it unless ContinuesBelowZero), rate =
+// delta_dot (> 0 loading); "branch"
 // selects the side of the law's switch (Walton-Braun: loading = true) so that every trial point
 // of an integrator step stays on the branch the step started on (the integrator locates sign
 // changes of Switch and restarts on the other branch). Laws without a switch ignore it.
@@ -40,6 +41,10 @@ class ContactDynamics {
   // delta^(1/4), 2 for Hertz's delta^(3/2), 1 for laws smooth in delta). The integrator takes
   // u = delta^(1/q) as its independent variable where the overlap is small.
   virtual int OverlapRoot() const { return 1; }
+  // The force formula continues smoothly to delta < 0 (laws linear in delta): the integrator
+  // then passes the overlap through unclamped past the end of the contact, so the step that
+  // crosses the end sees no kink. Otherwise it passes max(delta, 0) (F(0, delta') beyond).
+  virtual bool ContinuesBelowZero() const { return false; }
   virtual bool HasSwitch() const { return false; }
   // Internal state at first touch; independent of p and of the impact speed (sensitivities
   // assume so). Default: zeros.

@@ -40,12 +40,12 @@ T RelaxationViscosityFactor(const T* p, const ContactBody& body) {
 template <class T>
 T RelaxationTime(const T* p, const ContactBody& body) {
   using std::sqrt;
-  return p[2] * sqrt(body.ball_mass_kg / p[0]) / std::pow(body.ball_diameter_m, 0.25);
+  return Quotient(p[2] * sqrt(body.ball_mass_kg / p[0]), std::pow(body.ball_diameter_m, 0.25));
 }
 template <class T>
 T Theta(const T& x) {
   using std::tanh;
-  return 0.5 * (tanh((x - kJiangLiuX0) / kJiangLiuX1) + 1.0);
+  return 0.5 * (tanh(Quotient(x - kJiangLiuX0, kJiangLiuX1)) + 1.0);
 }
 
 }  // namespace

@@ -9,12 +9,13 @@
 //                              const T* state, bool branch) const;
 //   double ElasticEnergy(const Constants<double>&, double delta, const double* state) const;
 // and, where it has them (defaults below): kStateSize, StateRate, InternalEnergy, StateScale,
-// kHasSwitch + Switch (+ AtSwitch, a state update at the switch), kOverlapRoot; the closed
+// kHasSwitch + Switch (+ AtSwitch, a state update at the switch), kOverlapRoot,
+// kContinuesBelowZero (a formula that stays smooth for delta < 0); the closed
 // forms its row lists, as the ContactLaw overrides.
 // Prepare, Force, StateRate and Switch are templated on the scalar type: the same code runs in
 // double and in ceres::Jet (forward sensitivities, automatic derivatives); write them with
-// unqualified math (using std::sqrt; sqrt(x)) and compare through .a-free expressions
-// (Jet comparisons compare values). The file ends with the explicit instantiation
+// unqualified math (using std::sqrt; sqrt(x)), divide with Quotient (physics/scalar.hpp: the
+// same value in both types) and compare values (Jet comparisons compare values). The file ends with the explicit instantiation
 //   template std::unique_ptr<LawBase> MakeLaw<L>(const LawSpec&, const Scene&);
 #pragma once
 
@@ -27,14 +28,12 @@
 #include "bouncecal/physics/contact_dynamics.hpp"
 #include "physics/laws/law_base.hpp"
 #include "physics/laws/unit_contact.hpp"
+#include "physics/scalar.hpp"
 
 namespace bouncecal::laws {
 
-inline double Value(double x) { return x; }
-template <int N>
-double Value(const ceres::Jet<double, N>& x) {
-  return x.a;
-}
+using scalar::Quotient;
+using scalar::Value;
 
 // A tabulated curve y(x) in either scalar type (the Jet carries dy/dx).
 inline double Interpolate(const HermiteTable& table, double x) { return table(x); }
@@ -55,6 +54,7 @@ class LawImpl : public LawBase {
   static constexpr int kStateSize = 0;
   static constexpr int kOverlapRoot = 1;
   static constexpr bool kHasSwitch = false;
+  static constexpr bool kContinuesBelowZero = false;
 
   int StateSize() const override { return L::kStateSize; }
   std::unique_ptr<ContactDynamics> Dynamics(std::span<const double> p,
@@ -101,6 +101,7 @@ class DynamicsOf final : public ContactDynamics {
   ContactEnd EndRule() const override { return end_rule_; }
   int OverlapRoot() const override { return L::kOverlapRoot; }
   bool HasSwitch() const override { return L::kHasSwitch; }
+  bool ContinuesBelowZero() const override { return L::kContinuesBelowZero; }
   double StateScale(int i, double length_m, double energy_j) const override {
     return law_.StateScale(c_, i, length_m, energy_j);
   }

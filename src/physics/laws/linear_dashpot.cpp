@@ -96,9 +96,10 @@ class LinearDashpot final : public LawImpl<LinearDashpot> {
   Constants<T> Prepare(const T* p, const ContactBody&) const {
     return {p[0], p[1]};
   }
+  // k d + c d' for every d: smooth through d = 0 (past the end the integrator continues it).
+  static constexpr bool kContinuesBelowZero = true;
   template <class T>
   T Force(const Constants<T>& cs, const T& delta, const T& rate, const T*, bool) const {
-    if (delta < 0.0) return T(0.0);
     return cs.k * delta + cs.c * rate;
   }
   double ElasticEnergy(const Constants<double>& cs, double delta_m, const double*) const {

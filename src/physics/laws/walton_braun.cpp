@@ -39,9 +39,9 @@ class WaltonBraun final : public LawImpl<WaltonBraun> {
     return {(1.0 + p[1]) * p[0], (1.0 - p[1]) * p[0]};
   }
   // The branch continued past the switch (contact_dynamics.hpp): loading = true.
+  static constexpr bool kContinuesBelowZero = true;  // linear in d on each branch
   template <class T>
   T Force(const Constants<T>& c, const T& delta, const T&, const T*, bool loading) const {
-    if (delta < 0.0) return T(0.0);
     return (loading ? c.load : c.unload) * delta;
   }
   template <class T, class C>

@@ -56,11 +56,11 @@ class WaltonBraunHysteretic final : public LawImpl<WaltonBraunHysteretic> {
   };
   template <class T>
   Constants<T> Prepare(const T* p, const ContactBody&) const {
-    return {p[0], p[1], 1.0 - p[0] / p[1]};
+    return {p[0], p[1], 1.0 - Quotient(p[0], p[1])};
   }
+  static constexpr bool kContinuesBelowZero = true;  // two lines in d
   template <class T>
   T Force(const Constants<T>& c, const T& delta, const T&, const T* state, bool) const {
-    if (!(delta > 0.0)) return T(0.0);
     const T delta_max = state[0] > delta ? state[0] : delta;
     const T loading = c.k1 * delta;
     const T unloading = c.k2 * (delta - delta_max * c.plastic);

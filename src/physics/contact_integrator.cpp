@@ -394,7 +394,11 @@ class ContactIntegration {
     // (Hertz: delta_max = v t_c / 2.94), time to 1.
     const double span = sys_.phase() == Phase::kApproach ? std::pow(0.34, 1.0 / q) : 1.0;
     h_ = kFirstStepFactor * std::pow(kToleranceScale * options_.rel_tolerance, 0.2) * span;
+    Refresh();
   }
+
+  // The physical view of the current point (x_ at indep_), kept up to date.
+  void Refresh() { here_ = sys_.Unscale(Values(x_), indep_); }
 
   // Attempts one step from (indep_, x_) of size h_; true if accepted (x_new_, f_new_, h_next_).
   bool TryStep() {
@@ -435,23 +439,24 @@ class ContactIntegration {
     return std::sqrt(sum / static_cast<double>(n_));
   }
 
-  void Commit() {
+  // Accepts the step to x_new_, whose physical view is `end`.
+  void Commit(const PhysN<double, N>& end) {
     indep_ += h_;
     if (sys_.phase() == Phase::kExit && indep_ < 0.0) indep_ = 0.0;
     x_ = x_new_;
     f_ = f_new_;
     h_ = h_next_;
+    here_ = end;
   }
 
   // --- approach phase (independent variable u) -------------------------------------------------
   void AfterApproachStep() {
-    const double u0 = indep_;
-    TrackPeaks(u0, u0 + h_, Values(x_), Values(x_new_));
-    Commit();
+    const PhysN<double, N> end = sys_.Unscale(Values(x_new_), indep_ + h_);
+    TrackPeaks(indep_, indep_ + h_, end);
+    Commit(end);
     CheckStuck();
     if (done_) return;
-    const PhysN<double, N> ph = sys_.Unscale(Values(x_), indep_);
-    if (ph.delta_dot < kApproachEndSpeed * Scale().speed_m_s) ToTime();
+    if (here_.delta_dot < kApproachEndSpeed * Scale().speed_m_s) ToTime();
   }
 
   // From u (approach or exit) to time, at the current point: tau becomes the independent
@@ -474,6 +479,7 @@ class ContactIntegration {
     indep_ = tau;
     h_ *= rho;
     sys_(x_, f_, indep_);
+    Refresh();
   }
 
   // From time to u (exit): u = (delta / L)^(1/q) at the current point; tau becomes a state.
@@ -499,17 +505,18 @@ class ContactIntegration {
     h_ = -std::abs(h_ * rho_inverse);
     exit_entry_speed_ = std::abs(delta_dot_s);
     sys_(x_, f_, indep_);
+    Refresh();
   }
 
   // --- exit phase (u down to 0) ----------------------------------------------------------------
   void AfterExitStep() {
-    TrackPeaks(indep_, indep_ + h_, Values(x_), Values(x_new_));
-    Commit();
+    const PhysN<double, N> end = sys_.Unscale(Values(x_new_), indep_ + h_);
+    TrackPeaks(indep_, indep_ + h_, end);
+    Commit(end);
     CheckStuck();
     if (done_) return;
-    const PhysN<double, N> ph = sys_.Unscale(Values(x_), indep_);
     if (indep_ == 0.0) return Separated(x_, indep_, x_[0]);
-    if (std::abs(ph.delta_dot) < kExitSpeedFloor * exit_entry_speed_ * Scale().speed_m_s) {
+    if (std::abs(here_.delta_dot) < kExitSpeedFloor * exit_entry_speed_ * Scale().speed_m_s) {
       exit_disabled_ = true;  // a creeping ball: the stuck tests live in the time phase
       ToTime();
     }
@@ -517,8 +524,8 @@ class ContactIntegration {
 
   // --- middle phase (time) ---------------------------------------------------------------------
   void AfterMiddleStep();
-  bool LocateSwitch(double t, double t1, double* t_w);
-  double LocateEnd(double t, double t_w, const ValueState& x_w, bool* found);
+  bool LocateSwitch(double t, double t1, const PhysN<double, N>& end, double* t_w);
+  double LocateEnd(double t, double t_w, const PhysN<double, N>& pw, bool* found);
   void FinishAtEnd(double t, double t_end);
   void RestartOnOtherBranch(double t, double t_w, const State& x_dense);
   void CheckStuck();
@@ -531,8 +538,8 @@ class ContactIntegration {
     return sys_.Unscale(Values(xd_), at);
   }
 
-  // Peak overlap and peak force over the step [a, b] (values at both ends given).
-  void TrackPeaks(double a, double b, const ValueState& xa, const ValueState& xb);
+  // Peak overlap and peak force over the step [a, b] from the current point (b's view given).
+  void TrackPeaks(double a, double b, const PhysN<double, N>& pb);
 
   // Derivative along the trajectory of g (central difference along f at x, in the phase's
   // independent variable).
@@ -629,6 +636,7 @@ class ContactIntegration {
   dopri5::Stepper<T, N> stepper_;
   dopri5::Controller controller_;
   State x_{}, f_{}, x_new_{}, f_new_{}, xd_{};
+  PhysN<double, N> here_{};  // physical view of x_ at indep_
   std::array<double, N> err_{};
   double indep_ = 0.0, h_ = 0.0, h_next_ = 0.0;
   bool use_exit_ = false, exit_disabled_ = false;
@@ -642,9 +650,8 @@ class ContactIntegration {
 };
 
 template <class T, size_t N>
-void ContactIntegration<T, N>::TrackPeaks(double a, double b, const ValueState& xa, const ValueState& xb) {
-  const PhysN<double, N> pa = sys_.Unscale(xa, a);
-  const PhysN<double, N> pb = sys_.Unscale(xb, b);
+void ContactIntegration<T, N>::TrackPeaks(double a, double b, const PhysN<double, N>& pb) {
+  const PhysN<double, N>& pa = here_;
   // At the end of a whole step the force is known from the ball's acceleration (the FSAL
   // derivative): y'' = g - F/m (in the u phases y'' = (dx1/du) / (dtau/du)).
   double fb = 0.0;
@@ -667,13 +674,20 @@ void ContactIntegration<T, N>::TrackPeaks(double a, double b, const ValueState& 
   // Force maximum inside the step: F rising at its start, falling at its end (searched until the
   // first maximum is found; later local maxima are sampled at step ends).
   if (!force_rising_ || b == a || sys_.phase() == Phase::kExit) return;
-  // Still rising at the end? F a little before b, along the step's end derivative.
+  // Still rising at the end? F a little before b: along the step's end derivative at the end
+  // of a whole step, on the dense output inside a cut one.
   constexpr double kBack = 1e-6;
-  ValueState back = xb;
-  const ValueState fv = Values(f_new_);
   const double span = b - a;
-  for (size_t i = 0; i < n_; ++i) back[i] -= kBack * span * fv[i];
-  if (fb > sys_.Force(sys_.Unscale(back, b - kBack * span))) return;
+  double f_before = 0.0;
+  if (b == indep_ + h_) {
+    ValueState back = Values(x_new_);
+    const ValueState fv = Values(f_new_);
+    for (size_t i = 0; i < n_; ++i) back[i] -= kBack * span * fv[i];
+    f_before = sys_.Force(sys_.Unscale(back, b - kBack * span));
+  } else {
+    f_before = sys_.Force(Dense(b - kBack * span));
+  }
+  if (fb > f_before) return;
   double lo = std::min(a, b), hi = std::max(a, b);  // golden-section search for the maximum
   constexpr double kInvPhi = 0.6180339887498949;
   // Near its maximum F is quadratic in time: a bracket of 1e-6 of the step leaves F within
@@ -703,13 +717,14 @@ void ContactIntegration<T, N>::TrackPeaks(double a, double b, const ValueState& 
 // 1. Branch switch: the step ran on the old branch continued past the switch, so the dense
 // output is smooth; locate the sign change and end the step window there. True if switched.
 template <class T, size_t N>
-bool ContactIntegration<T, N>::LocateSwitch(double t, double t1, double* t_w) {
+bool ContactIntegration<T, N>::LocateSwitch(double t, double t1, const PhysN<double, N>& end,
+                                            double* t_w) {
   *t_w = t1;
   if (!sys_.dynamics().HasSwitch()) return false;
   const double sign = sys_.positive_branch() ? 1.0 : -1.0;
-  const double g1 = sys_.Switch(sys_.Unscale(Values(x_new_), t1)) * sign;
+  const double g1 = sys_.Switch(end) * sign;
   if (g1 > 0.0) return false;
-  const double g0 = sys_.Switch(sys_.Unscale(Values(x_), t)) * sign;
+  const double g0 = sys_.Switch(here_) * sign;
   auto gs = [&](double at) { return sys_.Switch(Dense(at)) * sign; };
   const double tol = kEventTolerance * std::max(1.0, t1);
   *t_w = g0 > 0.0 ? LocateRoot(gs, t, t1, g0, g1, tol) : t;
@@ -718,19 +733,18 @@ bool ContactIntegration<T, N>::LocateSwitch(double t, double t1, double* t_w) {
 
 // 2. Contact end within the window [t, t_w]: delta returns to 0 (or F to 0 for kForceZero laws).
 template <class T, size_t N>
-double ContactIntegration<T, N>::LocateEnd(double t, double t_w, const ValueState& x_w, bool* found) {
+double ContactIntegration<T, N>::LocateEnd(double t, double t_w, const PhysN<double, N>& pw,
+                                           bool* found) {
   const bool force_zero_end = sys_.dynamics().EndRule() == ContactEnd::kForceZero;
-  const PhysN<double, N> pw = sys_.Unscale(x_w, t_w);
   const double fw = force_zero_end ? sys_.Force(pw) : 0.0;
   const double tol = kEventTolerance * std::max(1.0, t_w);
   double t_end = -1.0;
   if (pw.delta <= 0.0 && t_w > 0.0) {
-    const PhysN<double, N> p0 = sys_.Unscale(Values(x_), t);
     auto gd = [&](double at) { return Dense(at).delta; };
-    t_end = p0.delta > 0.0 ? LocateRoot(gd, t, t_w, p0.delta, pw.delta, tol) : t_w;
+    t_end = here_.delta > 0.0 ? LocateRoot(gd, t, t_w, here_.delta, pw.delta, tol) : t_w;
   }
   if (force_zero_end && was_loaded_ && fw <= 0.0) {
-    const double f0 = sys_.Force(sys_.Unscale(Values(x_), t));
+    const double f0 = sys_.Force(here_);
     auto gf = [&](double at) { return sys_.Force(Dense(at)); };
     const double tf = f0 > 0.0 ? LocateRoot(gf, t, t_w, f0, fw, tol) : t;
     if (t_end < 0.0 || tf < t_end) t_end = tf;
@@ -820,6 +834,7 @@ void ContactIntegration<T, N>::RestartOnOtherBranch(double t, double t_w, const 
   sys_(x_, f_, t_w);
   stalled_switches_ = t_w - t < 1e-12 ? stalled_switches_ + 1 : 0;
   indep_ = t_w;
+  Refresh();
   ++run_.switches;
 }
 
@@ -829,7 +844,7 @@ template <class T, size_t N>
 void ContactIntegration<T, N>::CheckStuck() {
   const ValueState xv = Values(x_), fv = Values(f_);
   const bool in_time = sys_.phase() == Phase::kMiddle;
-  const PhysN<double, N> pc = sys_.Unscale(xv, indep_);
+  const PhysN<double, N>& pc = here_;
   // Creeping (time phase): the ball moves slower than stuck_speed and its acceleration cannot
   // change that within a contact time (overdamped: delta' never returns to 0). Cheap.
   const double v_stuck = options_.stuck_speed_m_s / Scale().speed_m_s;
@@ -862,36 +877,32 @@ void ContactIntegration<T, N>::CheckStuck() {
 template <class T, size_t N>
 bool ContactIntegration<T, N>::EnterExit() const {
   if (!use_exit_ || exit_disabled_) return false;
-  const PhysN<double, N> ph = sys_.Unscale(Values(x_), indep_);
-  return ph.delta_dot < 0.0 && ph.delta > 0.0 &&
-         ph.delta < kExitOverlapFraction * run_.peak_overlap_m;
+  return here_.delta_dot < 0.0 && here_.delta > 0.0 &&
+         here_.delta < kExitOverlapFraction * run_.peak_overlap_m;
 }
 
 template <class T, size_t N>
 void ContactIntegration<T, N>::AfterMiddleStep() {
   const double t = indep_, t1 = indep_ + h_;
+  const PhysN<double, N> end = sys_.Unscale(Values(x_new_), t1);
   double t_w = t1;
-  const bool switched = LocateSwitch(t, t1, &t_w);
+  const bool switched = LocateSwitch(t, t1, end, &t_w);
   State x_w = x_new_;
+  PhysN<double, N> pw = end;
   if (t_w < t1) {
-    Dense(t_w);
+    pw = Dense(t_w);
     x_w = xd_;
   }
   bool ended = false;
-  const double t_end = LocateEnd(t, t_w, Values(x_w), &ended);
+  const double t_end = LocateEnd(t, t_w, pw, &ended);
   const double t_hi = ended ? t_end : t_w;
-  ValueState x_hi = Values(x_w);
-  if (t_hi < t_w) {
-    Dense(t_hi);
-    x_hi = Values(xd_);
-  }
-  TrackPeaks(t, t_hi, Values(x_), x_hi);
+  TrackPeaks(t, t_hi, t_hi < t_w ? Dense(t_hi) : pw);
   if (ended) return FinishAtEnd(t, t_end);
   if (switched) {
     RestartOnOtherBranch(t, t_w, x_w);
     h_ = h_next_;
   } else {
-    Commit();
+    Commit(end);
     stalled_switches_ = 0;
   }
   CheckStuck();

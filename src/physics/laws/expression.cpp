@@ -9,10 +9,9 @@
 // part, integral_0^d F(x, 0) dx (16-point Gauss-Legendre in u = sqrt(x/d)). No closed forms.
 // Each law instance owns its parser (muParser is not thread-safe): one instance per thread,
 // as for every law (contact_law.hpp); its dynamics share that parser.
-// muParser evaluates doubles only, so this is the one law whose force is not templated on the
-// scalar type: its derivatives (forward sensitivities) are central differences of the
-// expression (relative step 1e-6 in d, v and each parameter; the truncation error is ~1e-12
-// relative for smooth expressions).
+// muParser evaluates doubles only, so this is the one registered law whose force is not
+// templated on the scalar type: its dynamics are PointwiseDynamics (pointwise_law.hpp), whose
+// derivatives (forward sensitivities) are central differences of the expression.
 #include <muParser.h>
 
 #include <cmath>
@@ -20,6 +19,7 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/physics/contact_dynamics.hpp"
+#include "bouncecal/physics/pointwise_law.hpp"
 #include "physics/laws/law_impl.hpp"
 
 namespace bouncecal::laws {
@@ -118,59 +118,12 @@ class Expression final : public LawBase {
   mutable std::vector<double> vars_;
 };
 
-namespace {
-
-// The expression's dynamics: the law's parser at fixed parameters p; derivatives by central
-// differences (see the top of this file).
-class ExpressionDynamics final : public ContactDynamics {
- public:
-  ExpressionDynamics(const Expression& law, std::span<const double> p)
-      : law_(law), p_(p.begin(), p.end()) {}
-  int StateSize() const override { return 0; }
-  int ParameterCount() const override { return static_cast<int>(p_.size()); }
-  ContactEnd EndRule() const override { return law_.EndRule(); }
-  double ForceOnBranch(double delta, double rate, const double*, bool) const override {
-    return law_.Force(p_, delta, rate);
-  }
-  SensitivityJet ForceOnBranch(const SensitivityJet& delta, const SensitivityJet& rate,
-                               const SensitivityJet*, bool) const override {
-    if (!(delta.a > 0.0)) return SensitivityJet(0.0);
-    SensitivityJet f(law_.Force(p_, delta.a, rate.a));
-    const double hd = kRelativeStep * delta.a;
-    const double hr = kRelativeStep * std::max(std::abs(rate.a), 1e-3);
-    const double df_ddelta =
-        (law_.Force(p_, delta.a + hd, rate.a) - law_.Force(p_, delta.a - hd, rate.a)) / (2 * hd);
-    const double df_drate =
-        (law_.Force(p_, delta.a, rate.a + hr) - law_.Force(p_, delta.a, rate.a - hr)) / (2 * hr);
-    f.v = df_ddelta * delta.v + df_drate * rate.v;
-    std::vector<double> q = p_;
-    for (size_t j = 0; j < q.size() && static_cast<int>(j) < kMaxSensitivityParameters; ++j) {
-      const double keep = q[j];
-      const double h = kRelativeStep * std::max(std::abs(keep), 1e-12);
-      q[j] = keep + h;
-      const double hi = law_.Force(q, delta.a, rate.a);
-      q[j] = keep - h;
-      const double lo = law_.Force(q, delta.a, rate.a);
-      q[j] = keep;
-      f.v[static_cast<int>(j)] += (hi - lo) / (2 * h);
-    }
-    return f;
-  }
-  double ElasticEnergy(double delta, const double*) const override {
-    return law_.ElasticEnergy(p_, delta);
-  }
-
- private:
-  static constexpr double kRelativeStep = 1e-6;
-  const Expression& law_;
-  std::vector<double> p_;
-};
-
-}  // namespace
-
 std::unique_ptr<ContactDynamics> Expression::Dynamics(std::span<const double> p,
                                                       const ContactBody&) const {
-  return std::make_unique<ExpressionDynamics>(*this, p);
+  // The parser at fixed p; derivatives by central differences (pointwise_law.hpp).
+  return std::make_unique<PointwiseDynamics>(
+      [this](std::span<const double> q, double d, double v) { return Force(q, d, v); },
+      [this](std::span<const double> q, double d) { return ElasticEnergy(q, d); }, EndRule(), p);
 }
 
 template std::unique_ptr<LawBase> MakeLaw<Expression>(const LawSpec&, const Scene&);

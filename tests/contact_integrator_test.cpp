@@ -251,16 +251,16 @@ TEST(ContactIntegrator, OneContactsSensitivitiesMatchCentralDifferences) {
   const ContactBody body = BodyFromScene(Scene{});
   const PlateModel plate{0.2, 5e6, 10.0};
   ContactRunOptions o = Tight();
-  for (const char* name : {"hertz-tsuji", "walton-braun-hysteretic", "jiang-liu",
-                           "linear-dashpot-force-zero"}) {
+  for (const char* name :
+       {"hertz-tsuji", "walton-braun-hysteretic", "jiang-liu", "linear-dashpot-force-zero"}) {
     for (const PlateModel* pl : {static_cast<const PlateModel*>(nullptr), &plate}) {
       SCOPED_TRACE(std::string(name) + (pl ? " with plate" : ""));
       const auto law = Law(name, {});
       const std::vector<double> p = law->ParameterValues();
       auto run = [&](const std::vector<double>& q, double v, ContactSensitivity* s) {
         const auto dyn = law->Dynamics(q, body);
-        return RunContact(*dyn, body, EstimateContactTime(*law, q, *dyn, body, v), v, 9.8, pl,
-                          o, s);
+        return RunContact(*dyn, body, EstimateContactTime(*law, q, *dyn, body, v), v, 9.8, pl, o,
+                          s);
       };
       const double v = 1.2;
       ContactSensitivity s;

@@ -316,8 +316,7 @@ TEST(Expression, ReproducesBuiltInLaw) {
   const auto r = oracle::Integrate(*expr, expr->ParameterValues(), body, 1.0);
   EXPECT_LT(Rel(r.restitution, e_expected), kClosedTol);
   EXPECT_NEAR(expr->Dynamics(expr->ParameterValues(), body)->ElasticEnergy(1e-4, nullptr),
-              0.5 * 1e7 * 1e-8,
-              1e-12);
+              0.5 * 1e7 * 1e-8, 1e-12);
   EXPECT_EQ(expr->Name(), "expression");
   EXPECT_FALSE(expr->Parameters()[expr->ParameterIndex("k")].damping);
   EXPECT_TRUE(expr->Parameters()[expr->ParameterIndex("c")].damping);
@@ -453,8 +452,8 @@ TEST(Registry, EveryLawIsCompleteAndConsistent) {
     const auto dyn = law->Dynamics(p, body);
     if (law->StateSize() == 0 && !dyn->HasSwitch()) {
       const double d = 1e-5, h = 1e-9;
-      const double dE = (dyn->ElasticEnergy(d + h, nullptr) - dyn->ElasticEnergy(d - h, nullptr)) /
-                        (2 * h);
+      const double dE =
+          (dyn->ElasticEnergy(d + h, nullptr) - dyn->ElasticEnergy(d - h, nullptr)) / (2 * h);
       EXPECT_NEAR(dE, dyn->Force(d, 0.0, nullptr), 1e-5 * std::abs(dyn->Force(d, 0.0, nullptr)))
           << info.name;
     }

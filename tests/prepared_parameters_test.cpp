@@ -77,9 +77,10 @@ TEST(PreparedParameters, EveryLawsJetDerivativesMatchCentralDifferences) {
         if (h == 0.0) continue;
         hi[j] += h;
         lo[j] -= h;
-        const double fd = (law->Dynamics(hi, body)->ForceOnBranch(delta, rate, state.data(), branch) -
-                           law->Dynamics(lo, body)->ForceOnBranch(delta, rate, state.data(), branch)) /
-                          (2 * h);
+        const double fd =
+            (law->Dynamics(hi, body)->ForceOnBranch(delta, rate, state.data(), branch) -
+             law->Dynamics(lo, body)->ForceOnBranch(delta, rate, state.data(), branch)) /
+            (2 * h);
         expect_near(f.v[j] * p[j], fd * p[j], "dF/dp_" + law->Parameters()[j].name);
       }
       if (ns > 0) {

@@ -152,8 +152,8 @@ TEST(Sensitivities, TooManyParametersIsAClearError) {
   Scene scene;
   scene.law.name = "expression";
   scene.law.expression = "k * d + a + b + c + e + f + g + h";
-  scene.law.parameters = {{"k", 1e7}, {"a", 0}, {"b", 0}, {"c", 0}, {"e", 0},
-                          {"f", 0},   {"g", 0}, {"h", 0}};
+  scene.law.parameters = {{"k", 1e7}, {"a", 0}, {"b", 0}, {"c", 0},
+                          {"e", 0},   {"f", 0}, {"g", 0}, {"h", 0}};
   const auto law = CreateLaw(scene.law, scene);
   try {
     SimulationSensitivities sens;

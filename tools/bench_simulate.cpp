@@ -27,9 +27,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdlib>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <vector>
@@ -139,11 +139,10 @@ void AccuracyTable(const std::string& name) {
     const double us = 1e6 * TimePerCall([&] { (void)Simulate(s, *law, p, o); }, 3, 0.01);
     const double steps = static_cast<double>(sim.total_steps) /
                          static_cast<double>(std::max<size_t>(1, sim.impacts.size()));
-    std::printf("| 1e-%d | %.2e | %.2e | %.1f | %.0f %% | %zu%s | %.1f |\n", ex, err_e, err_t,
-                steps, 100.0 * static_cast<double>(rejected) /
-                           static_cast<double>(std::max(1L, sim.total_steps)),
-                sim.impacts.size(), sim.impacts.size() != ref.impacts.size() ? " (ref differs)" : "",
-                us);
+    std::printf(
+        "| 1e-%d | %.2e | %.2e | %.1f | %.0f %% | %zu%s | %.1f |\n", ex, err_e, err_t, steps,
+        100.0 * static_cast<double>(rejected) / static_cast<double>(std::max(1L, sim.total_steps)),
+        sim.impacts.size(), sim.impacts.size() != ref.impacts.size() ? " (ref differs)" : "", us);
     if (ex < 12) Rows()[name].push_back({o.rel_tolerance, err_e, err_t, us, steps, n});
   }
   SimulatorOptions cf;
@@ -171,7 +170,8 @@ double TimeAtAccuracy(const std::string& law, double target) {
     const double t1 = rows[i].us_per_simulation / static_cast<double>(rows[i].impacts);
     if (i == 0 || rows[i - 1].err_e <= rows[i].err_e) return t1;
     const double t0 = rows[i - 1].us_per_simulation / static_cast<double>(rows[i - 1].impacts);
-    const double f = std::log(target / rows[i - 1].err_e) / std::log(rows[i].err_e / rows[i - 1].err_e);
+    const double f =
+        std::log(target / rows[i - 1].err_e) / std::log(rows[i].err_e / rows[i - 1].err_e);
     return std::exp(std::log(t0) + f * (std::log(t1) - std::log(t0)));
   }
   return std::nan("");
@@ -206,10 +206,10 @@ void SensitivityTable() {
     const std::vector<double> p = law->ParameterValues();
     const double plain = TimePerCall([&] { (void)Simulate(s, *law, p, {}); }, 3, 0.02);
     SimulationSensitivities sens;
-    const double with = TimePerCall(
-        [&] { (void)SimulateWithSensitivities(s, *law, p, {}, &sens); }, 3, 0.02);
-    std::printf("| %s | %.0f | %.0f | %.1f | %.0f |\n", name, 1e6 * plain, 1e6 * with,
-                with / plain, 1e6 * plain * 2.0 * static_cast<double>(p.size() + 1));
+    const double with =
+        TimePerCall([&] { (void)SimulateWithSensitivities(s, *law, p, {}, &sens); }, 3, 0.02);
+    std::printf("| %s | %.0f | %.0f | %.1f | %.0f |\n", name, 1e6 * plain, 1e6 * with, with / plain,
+                1e6 * plain * 2.0 * static_cast<double>(p.size() + 1));
   }
 }
 

@@ -155,8 +155,8 @@ Replay ReplayFromParamFile(const ParamFile& file, const std::string& path) {
   r.scene.law = file.law;  // the fitted values (held ones included)
   const LawInfo* row = FindLaw(r.scene.law.name);
   if (r.scene.law.expression.empty() && row != nullptr && row->needs_expression) {
-    throw Error(ErrorCode::kBadParameter, path + ": law " + r.scene.law.name +
-                                              " without scene.law.expression");
+    throw Error(ErrorCode::kBadParameter,
+                path + ": law " + r.scene.law.name + " without scene.law.expression");
   }
   const json& doc = file.doc;
   double v0 = 0.0;

@@ -13,8 +13,8 @@ double ContactDynamics::StateScale(int, double length_m, double) const { return 
 
 void ContactDynamics::StateRate(double, double, const double*, double*) const {}
 
-void ContactDynamics::StateRate(const SensitivityJet&, const SensitivityJet&,
-                                const SensitivityJet*, SensitivityJet*) const {}
+void ContactDynamics::StateRate(const SensitivityJet&, const SensitivityJet&, const SensitivityJet*,
+                                SensitivityJet*) const {}
 
 double ContactDynamics::Switch(double, double, const double*) const { return 1.0; }
 

@@ -641,9 +641,9 @@ class ContactIntegration {
   double indep_ = 0.0, h_ = 0.0, h_next_ = 0.0;
   bool use_exit_ = false, exit_disabled_ = false;
   double exit_entry_speed_ = 0.0;
-  bool was_loaded_ = false;    // F > 0 seen (for the F = 0 end rule)
-  bool force_rising_ = true;   // the first force maximum is still ahead
-  int stalled_switches_ = 0;   // consecutive switches without progress in time
+  bool was_loaded_ = false;   // F > 0 seen (for the F = 0 end rule)
+  bool force_rising_ = true;  // the first force maximum is still ahead
+  int stalled_switches_ = 0;  // consecutive switches without progress in time
   bool done_ = false;
   ContactRun run_;
   ContactSensitivity sensitivity_;
@@ -961,8 +961,7 @@ ContactRun RunContact(const ContactDynamics& dynamics, const ContactBody& body,
     ContactRun r;
     r.end = ContactRun::End::kStepLimit;
     r.detail = options.label + ": " + std::to_string(n_state) +
-               " internal state variables (at most " + std::to_string(kMaxLawState) +
-               " supported)";
+               " internal state variables (at most " + std::to_string(kMaxLawState) + " supported)";
     return r;
   }
   const bool small = plate == nullptr && n_state <= 1;
@@ -980,8 +979,8 @@ ContactRun RunContact(const ContactDynamics& dynamics, const ContactBody& body,
   }
   return small ? Integrate<double, 4>(dynamics, body, contact_time_scale_s, v_in_m_s, g_m_s2,
                                       nullptr, options, nullptr)
-               : Integrate<double, 5 + kMaxLawState>(dynamics, body, contact_time_scale_s,
-                                                     v_in_m_s, g_m_s2, plate, options, nullptr);
+               : Integrate<double, 5 + kMaxLawState>(dynamics, body, contact_time_scale_s, v_in_m_s,
+                                                     g_m_s2, plate, options, nullptr);
 }
 
 ContactRun RunContact(const ContactLaw& law, std::span<const double> p, const ContactBody& body,

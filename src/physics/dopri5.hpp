@@ -15,9 +15,9 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <cstdint>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 
 #include "physics/scalar.hpp"
 

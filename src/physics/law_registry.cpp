@@ -15,11 +15,11 @@ namespace {
 // Closed forms a law provides (a column of its row; ContactLaw's closed-form methods).
 enum ClosedForm : unsigned {
   kNone = 0,
-  kRestitution = 1u << 0,    // Restitution(p, body, v)
-  kContactTime = 1u << 1,    // ContactTime(p, body, v)
-  kSolveContact = 1u << 2,   // SolveContact(p, body, v): the simulator skips integration
-  kInverse = 1u << 3,        // DampingForRestitution(p, body, e, v)
-  kGradient = 1u << 4,       // RestitutionGradient(p, body, v, ...)
+  kRestitution = 1u << 0,   // Restitution(p, body, v)
+  kContactTime = 1u << 1,   // ContactTime(p, body, v)
+  kSolveContact = 1u << 2,  // SolveContact(p, body, v): the simulator skips integration
+  kInverse = 1u << 3,       // DampingForRestitution(p, body, e, v)
+  kGradient = 1u << 4,      // RestitutionGradient(p, body, v, ...)
   kAllLinear = kRestitution | kContactTime | kSolveContact | kInverse | kGradient,
   kMasterCurve = kRestitution | kContactTime | kInverse | kGradient,
 };
@@ -75,15 +75,15 @@ static const LawRow kLaws[] = {
      kAllLinear, MakeLaw<class WaltonBraunHysteretic>},
     {"hertz-tsuji", "Hertz + viscous damping d^1/4 (Tsuji 1992), speed-independent e",
      "F = k d^1.5 + alpha(e) sqrt(m* k) d^0.25 d'",
-     "Tsuji et al., Powder Technol. 71 (1992) 239, eq. 12; alpha(e) exact (master curve)",
-     kOverlap, false, kMasterCurve, MakeLaw<class HertzTsuji>},
+     "Tsuji et al., Powder Technol. 71 (1992) 239, eq. 12; alpha(e) exact (master curve)", kOverlap,
+     false, kMasterCurve, MakeLaw<class HertzTsuji>},
     {"hertz-viscoelastic", "viscoelastic Hertz (Brilliantov 1996 / Kuwabara-Kono), e falls with v",
      "F = k (d^1.5 + 1.5 A d^0.5 d')",
-     "Brilliantov et al., PRE 53 (1996) 5382; Schwager & Poschel, PRE 78 (2008) 051304",
-     kOverlap, false, kMasterCurve, MakeLaw<class HertzViscoelastic>},
-    {"hunt-crossley", "Hunt-Crossley k d^n (1 + alpha d'), alpha given",
-     "F = k d^n (1 + alpha d')", "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false,
-     kNone, MakeLaw<class HuntCrossley>},
+     "Brilliantov et al., PRE 53 (1996) 5382; Schwager & Poschel, PRE 78 (2008) 051304", kOverlap,
+     false, kMasterCurve, MakeLaw<class HertzViscoelastic>},
+    {"hunt-crossley", "Hunt-Crossley k d^n (1 + alpha d'), alpha given", "F = k d^n (1 + alpha d')",
+     "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false, kNone,
+     MakeLaw<class HuntCrossley>},
     {"hunt-crossley-hc", "Hunt-Crossley with alpha = 3(1-e)/(2 v0) from target e, v0",
      "F = k d^n (1 + alpha d'), alpha = 3(1-e)/(2 v0)",
      "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false, kNone,
@@ -98,8 +98,8 @@ static const LawRow kLaws[] = {
      MakeLaw<class HuntCrossleyFlores>},
     {"jiang-liu", "Jiang-Liu thermodynamic law (seed 000), relaxation energy w_r, normal only",
      "F = k d^1.5 + a w_r^0.25 Theta(d/D) d', dw_r/dt = a w_r^0.25 Theta d'^2 - w_r/tau",
-     "Jiang & Liu, Acta Phys. Sin. 67 (2018) 044502, eqs. 28-33, 37-39 (seed 000)", kOverlap,
-     false, kNone, MakeLaw<class JiangLiu>},
+     "Jiang & Liu, Acta Phys. Sin. 67 (2018) 044502, eqs. 28-33, 37-39 (seed 000)", kOverlap, false,
+     kNone, MakeLaw<class JiangLiu>},
     {"expression", "user-defined force from a muParser expression in d, v and named parameters",
      "F = user expression in d, v and named parameters", "user-defined (muParser expression)",
      kOverlap, true, kNone, MakeLaw<class Expression>},
@@ -121,10 +121,8 @@ LawInfo InfoOf(const LawRow& row) {
   info.end_rule = row.end_rule;
   info.needs_expression = row.needs_expression;
   const std::pair<unsigned, const char*> forms[] = {
-      {laws::kRestitution, "restitution"},
-      {laws::kContactTime, "contact_time"},
-      {laws::kSolveContact, "solve_contact"},
-      {laws::kInverse, "damping_for_restitution"},
+      {laws::kRestitution, "restitution"},       {laws::kContactTime, "contact_time"},
+      {laws::kSolveContact, "solve_contact"},    {laws::kInverse, "damping_for_restitution"},
       {laws::kGradient, "restitution_gradient"},
   };
   for (const auto& [bit, name] : forms) {

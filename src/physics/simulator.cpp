@@ -379,10 +379,10 @@ Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double
       if (lim.horizon_s > Val(t_launch)) flight.State(v0v, lim.horizon_s - Val(t_launch), &h, &vel);
       const double final_j = m * g * h + 0.5 * m * vel * vel;
       if (has_drag) en.dissipated_drag_j += 0.5 * m * v0v * v0v - final_j;
-      return stop(StopReason::kHorizon,
-                  "next impact at " + Num(Val(t_next)) +
-                      " s is beyond horizon_s = " + Num(lim.horizon_s),
-                  final_j);
+      return stop(
+          StopReason::kHorizon,
+          "next impact at " + Num(Val(t_next)) + " s is beyond horizon_s = " + Num(lim.horizon_s),
+          final_j);
     }
     if (has_drag) en.dissipated_drag_j += 0.5 * m * (v0v * v0v - Val(v_next) * Val(v_next));
 
@@ -413,10 +413,10 @@ Simulation SimulateWithSensitivities(const Scene& scene, const ContactLaw& law,
                                      const SimulatorOptions& options,
                                      SimulationSensitivities* sensitivities) {
   if (params.size() > static_cast<size_t>(kMaxSensitivityParameters)) {
-    throw Error(ErrorCode::kBadParameter,
-                "law " + law.Name() + ": sensitivities for at most " +
-                    std::to_string(kMaxSensitivityParameters) + " parameters (got " +
-                    std::to_string(params.size()) + ")");
+    throw Error(ErrorCode::kBadParameter, "law " + law.Name() + ": sensitivities for at most " +
+                                              std::to_string(kMaxSensitivityParameters) +
+                                              " parameters (got " + std::to_string(params.size()) +
+                                              ")");
   }
   SimulationSensitivities local;
   SimulationSensitivities* out = sensitivities ? sensitivities : &local;

@@ -29,18 +29,16 @@ namespace bouncecal {
 // parameter (the sensitivities' central differences).
 class PointwiseDynamics final : public ContactDynamics {
  public:
-  using ForceFn = std::function<double(std::span<const double> p, double delta_m,
-                                       double delta_dot_m_s)>;
+  using ForceFn =
+      std::function<double(std::span<const double> p, double delta_m, double delta_dot_m_s)>;
   using EnergyFn = std::function<double(std::span<const double> p, double delta_m)>;
 
-  PointwiseDynamics(ForceFn force, EnergyFn energy, ContactEnd end_rule,
-                    std::span<const double> p);
+  PointwiseDynamics(ForceFn force, EnergyFn energy, ContactEnd end_rule, std::span<const double> p);
 
   int StateSize() const override { return 0; }
   int ParameterCount() const override { return static_cast<int>(p_.size()); }
   ContactEnd EndRule() const override { return end_rule_; }
-  double ForceOnBranch(double delta_m, double delta_dot_m_s, const double*,
-                       bool) const override;
+  double ForceOnBranch(double delta_m, double delta_dot_m_s, const double*, bool) const override;
   SensitivityJet ForceOnBranch(const SensitivityJet& delta_m, const SensitivityJet& delta_dot_m_s,
                                const SensitivityJet*, bool) const override;
   double ElasticEnergy(double delta_m, const double*) const override;
@@ -58,8 +56,8 @@ class PointwiseContactLaw : public ContactLaw {
   virtual double Force(std::span<const double> p, const ContactBody& body, double delta_m,
                        double delta_dot_m_s, const double* state) const = 0;
   // The work of the rate-independent part, integral_0^delta F(x, 0) dx (J).
-  virtual double ElasticEnergy(std::span<const double> p, const ContactBody& body,
-                               double delta_m, const double* state) const = 0;
+  virtual double ElasticEnergy(std::span<const double> p, const ContactBody& body, double delta_m,
+                               const double* state) const = 0;
 
   int StateSize() const override { return 0; }
   std::vector<std::string> ClosedForms() const override { return {}; }

@@ -15,7 +15,8 @@
 // Prepare, Force, StateRate and Switch are templated on the scalar type: the same code runs in
 // double and in ceres::Jet (forward sensitivities, automatic derivatives); write them with
 // unqualified math (using std::sqrt; sqrt(x)), divide with Quotient (physics/scalar.hpp: the
-// same value in both types) and compare values (Jet comparisons compare values). The file ends with the explicit instantiation
+// same value in both types) and compare values (Jet comparisons compare values). The file ends with
+// the explicit instantiation
 //   template std::unique_ptr<LawBase> MakeLaw<L>(const LawSpec&, const Scene&);
 #pragma once
 
@@ -105,8 +106,7 @@ class DynamicsOf final : public ContactDynamics {
   double StateScale(int i, double length_m, double energy_j) const override {
     return law_.StateScale(c_, i, length_m, energy_j);
   }
-  double ForceOnBranch(double delta, double rate, const double* state,
-                       bool branch) const override {
+  double ForceOnBranch(double delta, double rate, const double* state, bool branch) const override {
     return law_.Force(c_, delta, rate, state, branch);
   }
   Jet ForceOnBranch(const Jet& delta, const Jet& rate, const Jet* state,
@@ -125,9 +125,7 @@ class DynamicsOf final : public ContactDynamics {
   Jet Switch(const Jet& delta, const Jet& rate, const Jet* state) const override {
     return law_.Switch(cj_, delta, rate, state);
   }
-  void AtSwitch(double delta, double* state) const override {
-    law_.AtSwitch(c_, delta, state);
-  }
+  void AtSwitch(double delta, double* state) const override { law_.AtSwitch(c_, delta, state); }
   void AtSwitch(const Jet& delta, Jet* state) const override { law_.AtSwitch(cj_, delta, state); }
   double ElasticEnergy(double delta, const double* state) const override {
     return law_.ElasticEnergy(c_, delta, state);

@@ -204,7 +204,6 @@ class LinearDashpot final : public LawImpl<LinearDashpot> {
     }
     return true;
   }
-
 };
 
 template std::unique_ptr<LawBase> MakeLaw<LinearDashpot>(const LawSpec&, const Scene&);

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "law_oracle.hpp"
 #include "physics/laws/jiang_liu.hpp"
@@ -40,7 +41,7 @@ Balance RunWithHeat(const ContactLaw& law, const std::vector<double>& p, const C
   b.r = oracle::Integrate(law, p, body, v, opt);
   b.initial_j = 0.5 * body.mass_kg * v * v;
   b.kinetic_out_j = 0.5 * body.mass_kg * b.r.v_out_m_s * b.r.v_out_m_s;
-  b.relaxation_j = law.InternalEnergy(p, body, 0.0, b.r.end_state.data());
+  b.relaxation_j = law.Dynamics(p, body)->InternalEnergy(b.r.end_state.data());
   b.heat_j = b.r.extra;
   return b;
 }
@@ -73,15 +74,13 @@ TEST(JiangLiu, ViscousForceOnlyDissipates) {
   // checked with the law's own force and elastic energy, loading and unloading.
   const ContactBody body = BodyFromScene(Scene{});
   auto law = MakeJL({{"eta", 3.0}});
-  const auto p = law->ParameterValues();
+  const auto dyn = law->Dynamics(law->ParameterValues(), body);
   for (double d : {1e-7, 1e-6, 5e-6}) {
     for (double rate : {-2.0, -0.5, 0.5, 2.0}) {
       const double s = 1e-6;
-      const double f = law->Force(p, body, d, rate, &s);
+      const double f = dyn->Force(d, rate, &s);
       const double h = 1e-12;
-      const double dwe =
-          (law->ElasticEnergy(p, body, d + h, &s) - law->ElasticEnergy(p, body, d - h, &s)) /
-          (2 * h);
+      const double dwe = (dyn->ElasticEnergy(d + h, &s) - dyn->ElasticEnergy(d - h, &s)) / (2 * h);
       // power into the ball: -F rate; power into the spring: dwe * rate; the difference is the
       // viscous power -eta rate^2 <= 0.
       EXPECT_LT(-f * rate + dwe * rate, 0.0) << d << " " << rate;

@@ -7,8 +7,8 @@
 //   - the peak overlap (delta' = 0),
 //   - branch switches reported by SwitchFunction (the stepper is restarted there, so no step
 //     straddles a discontinuity of the force).
-// It shares no code with the simulator or with the laws' closed forms: only Force, StateRate,
-// InitialState, SwitchFunction and EndRule of the law under test.
+// It shares no code with the simulator or with the laws' closed forms: only the law's dynamics
+// (ContactLaw::Dynamics: ForceOnBranch, StateRate, InitialState, Switch, AtSwitch) and EndRule.
 #pragma once
 
 #include <algorithm>
@@ -19,6 +19,7 @@
 
 #include <boost/numeric/odeint.hpp>
 
+#include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_law.hpp"
 
 namespace oracle {
@@ -54,17 +55,18 @@ inline Result Integrate(const bouncecal::ContactLaw& law, std::span<const double
   const int ns = law.StateSize();
   const size_t n = static_cast<size_t>(2 + ns + 1);  // delta, delta_dot, law state, extra
   const double m = body.mass_kg;
-  auto force = [&](const State& x) { return law.Force(p, body, x[0], x[1], x.data() + 2); };
+  const std::unique_ptr<bouncecal::ContactDynamics> dyn = law.Dynamics(p, body);
+  // As before the dynamics existed: the law is asked at the raw overlap (every law gives 0 force
+  // for delta < 0).
+  auto force = [&](const State& x) { return dyn->Force(x[0], x[1], x.data() + 2); };
   bool branch = true;  // side of the switch the current step started on
   auto rhs = [&](const State& x, State& dxdt, double) {
     dxdt[0] = x[1];
-    dxdt[1] = opt.g_m_s2 - law.ForceOnBranch(p, body, x[0], x[1], x.data() + 2, branch) / m;
-    if (ns > 0) law.StateRate(p, body, x[0], x[1], x.data() + 2, dxdt.data() + 2);
+    dxdt[1] = opt.g_m_s2 - dyn->ForceOnBranch(x[0], x[1], x.data() + 2, branch) / m;
+    if (ns > 0) dyn->StateRate(x[0], x[1], x.data() + 2, dxdt.data() + 2);
     dxdt[n - 1] = opt.extra_rate ? opt.extra_rate(x[0], x[1], x.data() + 2) : 0.0;
   };
-  auto switch_fn = [&](const State& x) {
-    return law.SwitchFunction(p, body, x[0], x[1], x.data() + 2);
-  };
+  auto switch_fn = [&](const State& x) { return dyn->Switch(x[0], x[1], x.data() + 2); };
   const bool force_end = law.EndRule() == bouncecal::ContactEnd::kForceZero;
   // End of contact, evaluated only once the ball moves outwards (delta' < 0).
   auto ended = [&](const State& x) {
@@ -75,10 +77,10 @@ inline Result Integrate(const bouncecal::ContactLaw& law, std::span<const double
 
   State x(n, 0.0);
   x[1] = v_in;
-  if (ns > 0) law.InitialState(p, body, v_in, x.data() + 2);
+  if (ns > 0) dyn->InitialState(x.data() + 2);
   auto dense = odeint::make_dense_output(1e-300, opt.rel_tol, odeint::runge_kutta_dopri5<State>());
   double t = 0.0;
-  branch = law.SwitchFunction(p, body, x[0], x[1], x.data() + 2) > 0.0;
+  branch = switch_fn(x) > 0.0;
   dense.initialize(x, t, 1e-12);
   Result r;
   r.peak_force_n = force(x);
@@ -121,6 +123,7 @@ inline Result Integrate(const bouncecal::ContactLaw& law, std::span<const double
       const double ts =
           bisect(t0, t1, [&](const State& s) { return (switch_fn(s) > 0.0) != from_positive; });
       dense.calc_state(ts, mid);
+      dyn->AtSwitch(mid[0], mid.data() + 2);  // the law's memory update at the switch
       branch = !branch;
       dense.initialize(mid, ts, (t1 - t0) * 1e-3);
     }

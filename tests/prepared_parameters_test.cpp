@@ -1,6 +1,8 @@
-// ContactLaw::PrepareParameters: the integrator passes [p..., prepared...] to the dynamics
-// functions; a law must give the same force (and switch, state rate) for the extended vector as
-// for plain p, and the prepared constants must follow p and the body (no stale values).
+// ContactLaw::Dynamics prepares a law for one parameter vector and body (per-contact constants
+// computed once: Hertz-Tsuji's eta = alpha(e) sqrt(m* k), Jiang-Liu's a and tau). The prepared
+// dynamics must follow p and the body (no stale constants), give the law's formula, and carry
+// exact derivatives in forward-sensitivity arithmetic (the Jacobians the simulator's
+// sensitivities are built from): checked against central differences for every law.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,94 +10,139 @@
 #include <vector>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/law_registry.hpp"
-#include "bouncecal/physics/simulator.hpp"
+#include "physics/laws/jiang_liu.hpp"
 
 namespace bouncecal {
 namespace {
 
-std::vector<double> Extended(const ContactLaw& law, const std::vector<double>& p,
-                             const ContactBody& body) {
-  std::vector<double> ext = p;
-  ext.resize(p.size() + static_cast<size_t>(law.PreparedSize()));
-  law.PrepareParameters(p, body, ext.data() + p.size());
-  return ext;
+LawSpec SpecFor(const LawInfo& info) {
+  LawSpec spec;
+  spec.name = info.name;
+  if (info.needs_expression) {
+    spec.expression = "k * d^1.5 * (1 + alpha * v)";
+    spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
+  }
+  return spec;
 }
 
-TEST(PreparedParameters, EveryLawGivesTheSameDynamicsWithPreparedConstants) {
+// The sensitivity-arithmetic force and state rate have the double values and the derivatives
+// of central differences, in delta, delta', the state and every parameter.
+TEST(PreparedParameters, EveryLawsJetDerivativesMatchCentralDifferences) {
   const Scene scene;  // seed 002: 1 cm steel ball on copper
   const ContactBody body = BodyFromScene(scene);
-  int prepared_laws = 0;
   for (const LawInfo& info : RegisteredLaws()) {
-    if (info.name == "expression") continue;  // needs a user expression
-    LawSpec spec;
-    spec.name = info.name;
-    const auto law = CreateLaw(spec, scene);
-    if (law->PreparedSize() > 0) ++prepared_laws;
+    SCOPED_TRACE(info.name);
+    const auto law = CreateLaw(SpecFor(info), scene);
     const std::vector<double> p = law->ParameterValues();
-    const std::vector<double> ext = Extended(*law, p, body);
-    std::vector<double> state(static_cast<size_t>(law->StateSize()) + 1, 0.0);
-    law->InitialState(p, body, 1.0, state.data());
-    for (double delta : {1e-9, 1e-6, 2e-5}) {
-      for (double rate : {1.5, 0.0, -0.7}) {
-        const double f = law->Force(p, body, delta, rate, state.data());
-        EXPECT_EQ(law->Force(ext, body, delta, rate, state.data()), f)
-            << info.name << " delta " << delta << " rate " << rate;
-        for (bool branch : {true, false}) {
-          EXPECT_EQ(law->ForceOnBranch(ext, body, delta, rate, state.data(), branch),
-                    law->ForceOnBranch(p, body, delta, rate, state.data(), branch))
-              << info.name;
-        }
-        EXPECT_EQ(law->SwitchFunction(ext, body, delta, rate, state.data()),
-                  law->SwitchFunction(p, body, delta, rate, state.data()))
-            << info.name;
+    const auto dyn = law->Dynamics(p, body);
+    const int ns = dyn->StateSize(), np = static_cast<int>(p.size());
+    ASSERT_LE(np + 2 + ns, kSensitivityDirections + 2);
+    // Inputs: a loading state of a 1 m/s contact (overlap ~1e-5 m), law state at a typical size.
+    const double delta = 4e-6, rate = 0.6;
+    std::vector<double> state(static_cast<size_t>(ns), 0.0);
+    for (int i = 0; i < ns; ++i) state[i] = 0.5 * dyn->StateScale(i, 3e-5, 2e-3) * 1e-3;
+    if (info.name == "walton-braun-hysteretic") state[0] = 5e-6;  // delta_max > delta
+    for (bool branch : {true, false}) {
+      // Seeds: delta -> direction np, rate -> np + 1 when room, else checked separately.
+      using Jet = SensitivityJet;
+      const int id = np, ir = np + 1;
+      ASSERT_LT(ir, kSensitivityDirections);
+      Jet dj(delta), rj(rate);
+      dj.v[id] = 1.0;
+      rj.v[ir] = 1.0;
+      std::vector<Jet> sj(static_cast<size_t>(ns));
+      for (int i = 0; i < ns; ++i) sj[i] = Jet(state[i]);
+      const Jet f = dyn->ForceOnBranch(dj, rj, sj.data(), branch);
+      const double f0 = dyn->ForceOnBranch(delta, rate, state.data(), branch);
+      EXPECT_EQ(f.a, f0);
+      auto expect_near = [&](double analytic, double fd, const std::string& what) {
+        EXPECT_NEAR(analytic, fd, 1e-6 * std::abs(fd) + 1e-9 * std::abs(f0) / delta) << what;
+      };
+      const double hd = 1e-6 * delta, hr = 1e-6 * rate;
+      expect_near(f.v[id],
+                  (dyn->ForceOnBranch(delta + hd, rate, state.data(), branch) -
+                   dyn->ForceOnBranch(delta - hd, rate, state.data(), branch)) /
+                      (2 * hd),
+                  "dF/d delta");
+      expect_near(f.v[ir] * rate,
+                  (dyn->ForceOnBranch(delta, rate + hr, state.data(), branch) -
+                   dyn->ForceOnBranch(delta, rate - hr, state.data(), branch)) /
+                      (2 * hr) * rate,
+                  "dF/d rate");
+      for (int j = 0; j < np; ++j) {
+        std::vector<double> hi = p, lo = p;
+        const double h = 1e-6 * std::abs(p[j]);
+        if (h == 0.0) continue;
+        hi[j] += h;
+        lo[j] -= h;
+        const double fd =
+            (law->Dynamics(hi, body)->ForceOnBranch(delta, rate, state.data(), branch) -
+             law->Dynamics(lo, body)->ForceOnBranch(delta, rate, state.data(), branch)) /
+            (2 * h);
+        expect_near(f.v[j] * p[j], fd * p[j], "dF/dp_" + law->Parameters()[j].name);
+      }
+      if (ns > 0) {
+        std::vector<Jet> out(static_cast<size_t>(ns));
+        dyn->StateRate(dj, rj, sj.data(), out.data());
+        std::vector<double> r0(static_cast<size_t>(ns)), r1(r0), r2(r0);
+        dyn->StateRate(delta, rate, state.data(), r0.data());
+        EXPECT_EQ(out[0].a, r0[0]);
+        dyn->StateRate(delta, rate + hr, state.data(), r1.data());
+        dyn->StateRate(delta, rate - hr, state.data(), r2.data());
+        EXPECT_NEAR(out[0].v[ir], (r1[0] - r2[0]) / (2 * hr),
+                    1e-6 * std::abs(r1[0] - r2[0]) / (2 * hr) + 1e-12)
+            << "d rate / d delta'";
       }
     }
   }
-  EXPECT_GE(prepared_laws, 1);  // hertz-tsuji prepares eta = alpha(e) sqrt(m* k)
 }
 
-TEST(PreparedParameters, HertzTsujiPreparedDampingFollowsEAndBody) {
+TEST(PreparedParameters, HertzTsujiDampingFollowsEAndBody) {
   const Scene scene;
   const ContactBody body = BodyFromScene(scene);
   LawSpec spec;
   spec.name = "hertz-tsuji";
   const auto law = CreateLaw(spec, scene);
-  ASSERT_EQ(law->PreparedSize(), 1);
   std::vector<double> p = law->ParameterValues();
   const int ie = law->ParameterIndex("e");
   ASSERT_GE(ie, 0);
+  // The damping force alone: F(delta, v) - F(delta, 0) = eta delta^(1/4) v.
+  auto eta = [&](const std::vector<double>& q, const ContactBody& b) {
+    const auto dyn = law->Dynamics(q, b);
+    const double d = 1e-6;
+    return (dyn->Force(d, 1.0, nullptr) - dyn->Force(d, 0.0, nullptr)) / std::pow(d, 0.25);
+  };
   p[static_cast<size_t>(ie)] = 0.8;
-  const double eta_08 = Extended(*law, p, body).back();
+  const double eta_08 = eta(p, body);
   p[static_cast<size_t>(ie)] = 0.3;
-  const std::vector<double> ext_03 = Extended(*law, p, body);
-  EXPECT_GT(ext_03.back(), eta_08);  // lower e: more damping
-  // The damping force alone (delta' only) scales with eta: F(ext) == F(p) for the new e.
-  EXPECT_EQ(law->Force(ext_03, body, 1e-6, 1.0, nullptr), law->Force(p, body, 1e-6, 1.0, nullptr));
+  const double eta_03 = eta(p, body);
+  EXPECT_GT(eta_03, eta_08);  // lower e: more damping
   // eta = alpha sqrt(m* k): four times the mass, twice eta.
   ContactBody heavy = body;
   heavy.mass_kg *= 4.0;
-  EXPECT_NEAR(Extended(*law, p, heavy).back() / ext_03.back(), 2.0, 1e-12);
+  EXPECT_NEAR(eta(p, heavy) / eta_03, 2.0, 1e-9);
 }
 
-TEST(PreparedParameters, OneHertzTsujiLawSimulatesSuccessiveParameterVectorsExactly) {
-  // The fitter varies p between simulations with the same law object: each simulation must use
-  // its own e (the first impact's restitution equals e up to gravity during the ~50 us contact).
-  Scene scene;
-  scene.law.name = "hertz-tsuji";
-  scene.limits.max_impacts = 3;
-  const auto law = CreateLaw(scene.law, scene);
-  std::vector<double> p = law->ParameterValues();
-  const size_t ie = static_cast<size_t>(law->ParameterIndex("e"));
-  SimulatorOptions o;
-  o.use_closed_form = false;
-  for (double e : {0.9, 0.4, 0.9, 0.6}) {
-    p[ie] = e;
-    const Simulation sim = Simulate(scene, *law, p, o);
-    ASSERT_FALSE(sim.impacts.empty());
-    const SimImpact& first = sim.impacts.front();
-    EXPECT_NEAR(first.v_out_m_s / first.v_in_m_s, e, 1e-3) << "e = " << e;
-  }
+TEST(PreparedParameters, JiangLiuConstantsAreThoseOfEqs37And39) {
+  const Scene scene;
+  const ContactBody body = BodyFromScene(scene);
+  LawSpec spec;
+  spec.name = "jiang-liu";
+  spec.parameters = {{"eta", 2.0}, {"tau", 0.1}};
+  const auto law = CreateLaw(spec, scene);
+  const std::vector<double> p = law->ParameterValues();
+  const auto dyn = law->Dynamics(p, body);
+  const double a = laws::JiangLiuA(p, body), tau = laws::JiangLiuTau(p, body);
+  const double d = 3e-6, v = -0.4, s = 2e-4;
+  const double theta = laws::JiangLiuTheta(d / body.ball_diameter_m);
+  // F = k d^1.5 + a s^(1/3) Theta v;  ds/dt = 3/4 (a Theta v^2 - s / tau)   (law's header)
+  EXPECT_NEAR(dyn->Force(d, v, &s), p[0] * std::pow(d, 1.5) + a * std::cbrt(s) * theta * v,
+              1e-12 * p[0] * std::pow(d, 1.5));
+  double rate = 0.0;
+  dyn->StateRate(d, v, &s, &rate);
+  EXPECT_NEAR(rate, 0.75 * (a * theta * v * v - s / tau), 1e-12 * s / tau);
 }
 
 }  // namespace

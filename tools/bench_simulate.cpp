@@ -1,26 +1,41 @@
-// bench_simulate — what accuracy costs in time, what each effect costs, and the speed target.
+// bench_simulate — what accuracy costs in time, what each effect costs, the speed targets, and
+// what a user waits for (whole processes).
 //
-//   build-*/bench_simulate            (prints markdown tables on stdout; < 2 minutes)
+//   build/bench_simulate              (prints markdown tables on stdout; ~2 minutes)
+//   BOUNCECAL_BASELINE=/path/to/an/older/bouncecal build/bench_simulate
+//                                     (adds that binary's whole-process times, for before/after)
 //
 // 1. Per registered law, a 30-impact sequence of the seed's 1 cm steel ball dropped from 0.2 m
 //    (contacts integrated, gravity in the contact) across rtol 1e-3 .. 1e-12: max error in e
-//    and in impact times against the tightest setting, integrator steps per contact, and the
-//    run time per simulation (thread CPU time, min over repetitions).
+//    and in impact times against the tightest setting, integrator steps per contact (and the
+//    share rejected), and the run time per simulation (thread CPU time, min over repetitions).
+//    Then every law's time per contact at the same accuracy (interpolated on those tables), as a
+//    ratio to hertz-tsuji's, and the cost of forward sensitivities.
 // 2. A fixed-step DEM integrator (symplectic Euler and velocity Verlet) at the seed's
 //    dt = 10 us and at 1 us, contact start/end taken at the first step that crossed, as DEM
 //    codes do, for the seed's Walton-Braun law (k = 1e7 N/m, gamma = 0.5): its eta error.
 // 3. The cost of each effect switched on alone against all off (all off timed twice: the
 //    noise floor).
-// 4. The speed target: 30 bounces of a 1 cm steel ball under Hertz-Tsuji in <= 1 ms.
+// 4. The speed target: 30 bounces of a 1 cm steel ball under Hertz-Tsuji in <= 0.5 ms at the
+//    default accuracy.
+// 5. Whole processes: `bouncecal --version` and `laws` (the bare start-up) against `simulate` of
+//    every law (median wall and CPU time of the child over repeated runs).
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <filesystem>
+#include <map>
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/physics/law_registry.hpp"
@@ -71,6 +86,16 @@ Scene SeedScene(const std::string& law) {
 
 double E(const SimImpact& i) { return i.v_out_m_s / i.v_in_m_s; }
 
+// One row of an accuracy table, kept for the same-accuracy comparison.
+struct AccuracyRow {
+  double rtol, err_e, err_t, us_per_simulation, steps_per_contact;
+  size_t impacts;
+};
+std::map<std::string, std::vector<AccuracyRow>>& Rows() {
+  static std::map<std::string, std::vector<AccuracyRow>> rows;
+  return rows;
+}
+
 void AccuracyTable(const std::string& name) {
   Scene s = SeedScene(name);
   std::unique_ptr<ContactLaw> law;
@@ -89,7 +114,7 @@ void AccuracyTable(const std::string& name) {
   std::printf(")\n\n");
   std::printf(
       "| rtol | max abs error in e | max abs error in impact times (s) | steps/contact |"
-      " impacts | time per simulation (us) |\n|---|---|---|---|---|---|\n");
+      " rejected | impacts | time per simulation (us) |\n|---|---|---|---|---|---|---|\n");
   SimulatorOptions ref_o;
   ref_o.use_closed_form = false;
   ref_o.rel_tolerance = 1e-12;
@@ -103,18 +128,22 @@ void AccuracyTable(const std::string& name) {
     const Simulation sim = Simulate(s, *law, p, o);
     double err_e = 0.0, err_t = 0.0;
     const size_t n = std::min(sim.impacts.size(), ref.impacts.size());
+    long rejected = 0;
     for (size_t k = 0; k < n; ++k) {
       if (ref.impacts[k].v_out_m_s > 0.0) {
         err_e = std::max(err_e, std::abs(E(sim.impacts[k]) - E(ref.impacts[k])));
       }
       err_t = std::max(err_t, std::abs(sim.impacts[k].time_s - ref.impacts[k].time_s));
     }
+    for (const SimImpact& i : sim.impacts) rejected += i.rejected_steps;
     const double us = 1e6 * TimePerCall([&] { (void)Simulate(s, *law, p, o); }, 3, 0.01);
-    std::printf("| 1e-%d | %.2e | %.2e | %.1f | %zu%s | %.1f |\n", ex, err_e, err_t,
-                static_cast<double>(sim.total_steps) /
-                    static_cast<double>(std::max<size_t>(1, sim.impacts.size())),
-                sim.impacts.size(),
-                sim.impacts.size() != ref.impacts.size() ? " (ref differs)" : "", us);
+    const double steps = static_cast<double>(sim.total_steps) /
+                         static_cast<double>(std::max<size_t>(1, sim.impacts.size()));
+    std::printf(
+        "| 1e-%d | %.2e | %.2e | %.1f | %.0f %% | %zu%s | %.1f |\n", ex, err_e, err_t, steps,
+        100.0 * static_cast<double>(rejected) / static_cast<double>(std::max(1L, sim.total_steps)),
+        sim.impacts.size(), sim.impacts.size() != ref.impacts.size() ? " (ref differs)" : "", us);
+    if (ex < 12) Rows()[name].push_back({o.rel_tolerance, err_e, err_t, us, steps, n});
   }
   SimulatorOptions cf;
   if (auto out = law->SolveContact(p, BodyFromScene(s), 1.0)) {
@@ -126,9 +155,61 @@ void AccuracyTable(const std::string& name) {
     }
     const double us = 1e6 * TimePerCall([&] { (void)Simulate(s, *law, p, cf); }, 3, 0.01);
     std::printf(
-        "| closed form (no gravity in contact) | %.2e (gravity's effect) | - | 0 | %zu |"
+        "| closed form (no gravity in contact) | %.2e (gravity's effect) | - | 0 | - | %zu |"
         " %.1f |\n",
         err_e, sim.impacts.size(), us);
+  }
+}
+
+// Time per contact (us) at which `law` reaches an error in e of `target`: log-log interpolation
+// between the two rows that bracket it (NaN when no row is that accurate).
+double TimeAtAccuracy(const std::string& law, double target) {
+  const std::vector<AccuracyRow>& rows = Rows()[law];
+  for (size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].err_e > target) continue;
+    const double t1 = rows[i].us_per_simulation / static_cast<double>(rows[i].impacts);
+    if (i == 0 || rows[i - 1].err_e <= rows[i].err_e) return t1;
+    const double t0 = rows[i - 1].us_per_simulation / static_cast<double>(rows[i - 1].impacts);
+    const double f =
+        std::log(target / rows[i - 1].err_e) / std::log(rows[i].err_e / rows[i - 1].err_e);
+    return std::exp(std::log(t0) + f * (std::log(t1) - std::log(t0)));
+  }
+  return std::nan("");
+}
+
+void SameAccuracyTable() {
+  std::printf(
+      "\n## Every law at the same accuracy\n\nTime per contact (us) for a maximum error in e "
+      "over the 30-impact sequence (log-log interpolation between the rows above), and its "
+      "ratio to hertz-tsuji at the same error.\n\n| law | e error 1e-6 | 1e-8 | 1e-10 |"
+      "\n|---|---|---|---|\n");
+  for (const auto& [law, rows] : Rows()) {
+    std::printf("| %s |", law.c_str());
+    for (double target : {1e-6, 1e-8, 1e-10}) {
+      const double t = TimeAtAccuracy(law, target), ref = TimeAtAccuracy("hertz-tsuji", target);
+      std::printf(" %.1f (%.2fx) |", t, t / ref);
+    }
+    std::printf("\n");
+  }
+}
+
+// Forward sensitivities against what they replace (central differences: 2 simulations per
+// parameter and one pair for the first impact speed).
+void SensitivityTable() {
+  std::printf(
+      "\n## Forward sensitivities (30 impacts, rtol 1e-9; every parameter and the first impact "
+      "speed)\n\n| law | Simulate (us) | SimulateWithSensitivities (us) | ratio | central "
+      "differences, 2 (P + 1) simulations (us) |\n|---|---|---|---|---|\n");
+  for (const char* name : {"hertz-tsuji", "hertz-viscoelastic", "walton-braun", "jiang-liu"}) {
+    Scene s = SeedScene(name);
+    const auto law = CreateLaw(s.law, s);
+    const std::vector<double> p = law->ParameterValues();
+    const double plain = TimePerCall([&] { (void)Simulate(s, *law, p, {}); }, 3, 0.02);
+    SimulationSensitivities sens;
+    const double with =
+        TimePerCall([&] { (void)SimulateWithSensitivities(s, *law, p, {}, &sens); }, 3, 0.02);
+    std::printf("| %s | %.0f | %.0f | %.1f | %.0f |\n", name, 1e6 * plain, 1e6 * with, with / plain,
+                1e6 * plain * 2.0 * static_cast<double>(p.size() + 1));
   }
 }
 
@@ -343,17 +424,118 @@ void SpeedTarget() {
     return;
   }
   const auto p = law->ParameterValues();
+  SimulatorOptions ref_o;
+  ref_o.rel_tolerance = 1e-12;
+  ref_o.abs_tolerance = 1e-14;
+  const Simulation ref = Simulate(s, *law, p, ref_o);
+  // The accuracy the default (rtol 1e-9) gave before this integrator (bench_simulate at commit
+  // 46f675b): e 5.85e-9, impact times 9.42e-9 s.
+  constexpr double kOldDefaultErrE = 5.85e-9, kOldDefaultErrT = 9.42e-9;
   std::printf(
-      "| rtol | time per 30-bounce simulation (us) | simulations per second | target "
-      "(<= 1000 us) | steps/contact |\n|---|---|---|---|---|\n");
-  for (double rtol : {1e-6, 1e-7, 1e-8, 1e-9}) {
+      "| rtol | error in e | error in impact times (s) | time per 30-bounce simulation (us) | "
+      "simulations per second | target (<= 500 us) | steps/contact |\n|---|---|---|---|---|---|"
+      "---|\n");
+  for (double rtol : {1e-6, 1e-7, 1e-8, 3e-9, 1e-9}) {
     SimulatorOptions o;
     o.rel_tolerance = rtol;
     const Simulation sim = Simulate(s, *law, p, o);
+    double err_e = 0.0, err_t = 0.0;
+    for (size_t k = 0; k < std::min(sim.impacts.size(), ref.impacts.size()); ++k) {
+      err_e = std::max(err_e, std::abs(E(sim.impacts[k]) - E(ref.impacts[k])));
+      err_t = std::max(err_t, std::abs(sim.impacts[k].time_s - ref.impacts[k].time_s));
+    }
     const double sec = TimePerCall([&] { (void)Simulate(s, *law, p, o); }, 7, 0.05);
-    std::printf("| %g | %.1f | %.0f | %s | %.1f |\n", rtol, 1e6 * sec, 1.0 / sec,
-                sec <= 1e-3 ? "met" : "NOT met",
+    const bool old_accuracy = err_e <= kOldDefaultErrE && err_t <= kOldDefaultErrT;
+    std::printf("| %g%s | %.2e | %.2e | %.1f | %.0f | %s | %.1f |\n", rtol,
+                rtol == 1e-9 ? " (default)" : "", err_e, err_t, 1e6 * sec, 1.0 / sec,
+                sec <= 5e-4 ? "met" : "NOT met",
                 static_cast<double>(sim.total_steps) / static_cast<double>(sim.impacts.size()));
+    if (old_accuracy && rtol > 1e-9) {
+      std::printf("|   (errors within the previous default's %.2e / %.2e s) | | | | | | |\n",
+                  kOldDefaultErrE, kOldDefaultErrT);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Whole processes: what a user waits for, start-up included.
+struct ProcessTime {
+  double wall_s = 0.0, cpu_s = 0.0;
+  bool ok = false;
+};
+
+ProcessTime RunProcess(const std::string& binary, const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(binary.c_str()));
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const auto t0 = Clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    FILE* null = std::fopen("/dev/null", "w");
+    if (null) {
+      dup2(fileno(null), 1);
+      dup2(fileno(null), 2);
+    }
+    execv(binary.c_str(), argv.data());
+    _exit(127);
+  }
+  ProcessTime t;
+  int status = 0;
+  rusage ru{};
+  if (pid < 0 || wait4(pid, &status, 0, &ru) != pid) return t;
+  t.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  t.cpu_s = static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+            1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  t.ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  return t;
+}
+
+// Median wall and CPU time over `runs` processes.
+ProcessTime MedianProcess(const std::string& binary, const std::vector<std::string>& args,
+                          int runs) {
+  std::vector<double> wall, cpu;
+  bool ok = true;
+  for (int i = 0; i < runs; ++i) {
+    const ProcessTime t = RunProcess(binary, args);
+    ok = ok && t.ok;
+    wall.push_back(t.wall_s);
+    cpu.push_back(t.cpu_s);
+  }
+  std::sort(wall.begin(), wall.end());
+  std::sort(cpu.begin(), cpu.end());
+  return {wall[wall.size() / 2], cpu[cpu.size() / 2], ok};
+}
+
+void ProcessTable() {
+  const std::string binary =
+      (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "bouncecal").string();
+  const char* baseline = std::getenv("BOUNCECAL_BASELINE");
+  std::printf(
+      "\n## Whole processes: bare start-up against `simulate` (default scene: 1 cm steel ball "
+      "from 0.2 m, until rest)\n\nMedian of 11 runs of `%s ARGS > /dev/null`; CPU = the "
+      "child's user + system time. Target: `simulate` of any law <= 5x the bare start-up.%s\n\n",
+      binary.c_str(), baseline ? " Baseline: the same commands with BOUNCECAL_BASELINE." : "");
+  std::printf("| command | wall (ms) | CPU (ms) | wall / --version | CPU / --version |%s\n",
+              baseline ? " baseline wall (ms) | baseline CPU (ms) |" : "");
+  std::printf("|---|---|---|---|---|%s\n", baseline ? "---|---|" : "");
+  std::vector<std::vector<std::string>> commands = {{"--version"}, {"laws"}};
+  for (const LawInfo& info : RegisteredLaws()) {
+    if (!info.needs_expression) commands.push_back({"simulate", "--law", info.name});
+  }
+  constexpr int kRuns = 11;
+  const ProcessTime bare = MedianProcess(binary, {"--version"}, kRuns);
+  for (const auto& args : commands) {
+    const ProcessTime t = MedianProcess(binary, args, kRuns);
+    std::string line;
+    for (const std::string& a : args) line += (line.empty() ? "" : " ") + a;
+    std::printf("| `%s`%s | %.1f | %.1f | %.1f | %.1f |", line.c_str(), t.ok ? "" : " (failed)",
+                1e3 * t.wall_s, 1e3 * t.cpu_s, t.wall_s / bare.wall_s, t.cpu_s / bare.cpu_s);
+    if (baseline) {
+      const ProcessTime b = MedianProcess(baseline, args, kRuns);
+      std::printf(" %.1f | %.1f |", 1e3 * b.wall_s, 1e3 * b.cpu_s);
+    }
+    std::printf("\n");
   }
 }
 
@@ -374,12 +556,15 @@ int main() {
       "gravity; errors against rtol 1e-12; time = thread CPU time per simulation, min over "
       "repetitions.\n");
   for (const LawInfo& info : RegisteredLaws()) {
-    if (info.name == "expression") continue;  // needs a user expression
+    if (info.needs_expression) continue;  // needs a user expression
     AccuracyTable(info.name);
   }
+  SameAccuracyTable();
+  SensitivityTable();
   DemTable();
   EffectsTable(Registered("hertz-tsuji") ? "hertz-tsuji" : "walton-braun");
   SpeedTarget();
+  ProcessTable();
   std::printf("\n(bench ran %.1f s)\n", std::chrono::duration<double>(Clock::now() - t0).count());
   return 0;
 }

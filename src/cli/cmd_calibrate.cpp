@@ -85,6 +85,36 @@ std::vector<CalibrationInput> Detect(const std::pair<std::string, std::string>& 
   return out;
 }
 
+// Detects every input on up to `jobs` threads; throws the first input's error in input order.
+std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string, std::string>>& in,
+                                        const DetectFlags& flags, int jobs) {
+  std::vector<std::vector<CalibrationInput>> per(in.size());
+  std::vector<std::optional<Error>> errors(in.size());
+  std::atomic<size_t> next{0};
+  auto worker = [&]() {
+    for (size_t i = next++; i < in.size(); i = next++) {
+      try {
+        per[i] = Detect(in[i], flags);
+      } catch (const Error& e) {
+        errors[i] = e;
+      } catch (const std::exception& e) {
+        errors[i] = Error(ErrorCode::kInternal, in[i].first + ": " + e.what());
+      }
+    }
+  };
+  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(in.size())));
+  std::vector<std::thread> pool;
+  for (int t = 1; t < n; ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  for (auto& e : errors) {
+    if (e) throw *e;
+  }
+  std::vector<CalibrationInput> out;
+  for (auto& p : per) out.insert(out.end(), p.begin(), p.end());
+  return out;
+}
+
 std::string CsvHeader(const std::vector<ParameterSpec>& specs) {
   std::string h = "file,status,error,law,outcome,impacts";
   for (const auto& s : specs) h += "," + s.name + "," + s.name + "_sigma";

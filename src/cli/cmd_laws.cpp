@@ -24,11 +24,12 @@ struct LawsFlags {
   std::string name;
 };
 
-// The expression law has no fixed parameters; it is listed with this example.
+// A law defined by an expression has no fixed parameters; it is listed with this example.
 LawSpec ListingSpec(const std::string& name) {
   LawSpec spec;
   spec.name = name;
-  if (name == "expression") {
+  const LawInfo* row = FindLaw(name);
+  if (row != nullptr && row->needs_expression) {
     spec.expression = "k * d^1.5 * (1 + alpha * v)";
     spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
   }
@@ -84,7 +85,7 @@ void Run(const LawsFlags& f) {
                             {"state_size", law->StateSize()},
                             {"parameters", params},
                             {"closed_forms", law->ClosedForms()}};
-    if (info.name == "expression") entry["example_expression"] = ListingSpec(info.name).expression;
+    if (info.needs_expression) entry["example_expression"] = ListingSpec(info.name).expression;
     laws.push_back(entry);
 
     text << info.name << " — " << info.summary << "\n";
@@ -94,7 +95,7 @@ void Run(const LawsFlags& f) {
          << (law->EndRule() == ContactEnd::kForceZero ? "force = 0" : "overlap = 0")
          << (law->StateSize() > 0 ? "; internal state: " + std::to_string(law->StateSize()) : "")
          << "\n";
-    if (info.name == "expression") {
+    if (info.needs_expression) {
       text << "  parameters: any names you give (example below); d = overlap (m), v = rate (m/s)\n";
     }
     text << "  " << std::left << std::setw(8) << "param" << std::setw(10) << "unit" << std::setw(12)

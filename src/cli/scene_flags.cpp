@@ -13,6 +13,7 @@
 #include <cstdlib>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 
 namespace bouncecal::cli {
 namespace {
@@ -154,16 +155,17 @@ Scene ResolveScene(const SceneFlags& flags) {
 
   // Law selection. Switching to another law drops the file's parameters for the old one.
   std::string law = flags.law;
-  if (law.empty() && !flags.expression.empty()) law = "expression";
+  if (law.empty() && !flags.expression.empty()) law = ExpressionLawName();
   if (!law.empty() && law != scene.law.name) {
     scene.law.name = law;
     scene.law.parameters.clear();
     scene.law.expression.clear();
   }
   if (!flags.expression.empty()) {
-    if (scene.law.name != "expression") {
-      throw Error(ErrorCode::kBadParameter,
-                  "--expression: only with --law expression (got --law " + scene.law.name + ")");
+    const LawInfo* row = FindLaw(scene.law.name);
+    if (row == nullptr || !row->needs_expression) {
+      throw Error(ErrorCode::kBadParameter, "--expression: only with --law " + ExpressionLawName() +
+                                                " (got --law " + scene.law.name + ")");
     }
     scene.law.expression = flags.expression;
   }

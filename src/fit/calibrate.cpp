@@ -244,7 +244,7 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
     if (info.name == scene.law.name) {
       job.scene.law = scene.law;
     } else {
-      if (info.name == "expression") continue;  // needs the user's expression
+      if (info.needs_expression) continue;  // needs the user's expression
       job.scene.law = LawSpec{};
       job.scene.law.name = info.name;
     }

@@ -153,8 +153,10 @@ Replay ReplayFromParamFile(const ParamFile& file, const std::string& path) {
   Replay r;
   r.scene = SceneOfFile(file, path);
   r.scene.law = file.law;  // the fitted values (held ones included)
-  if (r.scene.law.expression.empty() && r.scene.law.name == "expression") {
-    throw Error(ErrorCode::kBadParameter, path + ": law expression without scene.law.expression");
+  const LawInfo* row = FindLaw(r.scene.law.name);
+  if (r.scene.law.expression.empty() && row != nullptr && row->needs_expression) {
+    throw Error(ErrorCode::kBadParameter,
+                path + ": law " + r.scene.law.name + " without scene.law.expression");
   }
   const json& doc = file.doc;
   double v0 = 0.0;

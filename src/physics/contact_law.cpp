@@ -42,26 +42,6 @@ bool ContactLaw::IsValid(std::span<const double> p, const ContactBody& body,
   return true;
 }
 
-void ContactLaw::InitialState(std::span<const double>, const ContactBody&, double, double*) const {}
-
-void ContactLaw::StateRate(std::span<const double>, const ContactBody&, double, double,
-                           const double*, double*) const {}
-
-double ContactLaw::SwitchFunction(std::span<const double>, const ContactBody&, double, double,
-                                  const double*) const {
-  return 1.0;
-}
-
-double ContactLaw::ForceOnBranch(std::span<const double> p, const ContactBody& body, double delta_m,
-                                 double delta_dot_m_s, const double* state, bool) const {
-  return Force(p, body, delta_m, delta_dot_m_s, state);
-}
-
-double ContactLaw::InternalEnergy(std::span<const double>, const ContactBody&, double,
-                                  const double*) const {
-  return 0.0;
-}
-
 std::optional<double> ContactLaw::Restitution(std::span<const double>, const ContactBody&,
                                               double) const {
   return std::nullopt;

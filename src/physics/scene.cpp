@@ -8,7 +8,8 @@
 //   density_kg_m3 = 7800.0     # > 0; or mass_kg (> 0) -- giving both is an error
 //   # mass_kg = 0.00408
 //   material = "steel"         # preset: sets density (unless density/mass given), E and nu
-//   youngs_modulus_pa = 2.0e11 # > 0, overrides the preset (used by Hertz laws, contact time)
+//   youngs_modulus_pa = 2.0e11 # > 0, overrides the preset (used by Hertz laws, contact time;
+//                              # they need E and nu of ball AND surface: EffectiveModulusPa)
 //   poisson_ratio = 0.29       # in (-1, 0.5]
 //
 //   [surface]
@@ -40,7 +41,8 @@
 //
 //   [law]
 //   name = "walton-braun"      # registry name (bouncecal laws)
-//   expression = ""            # force expression, only with name = "expression"
+//   expression = ""            # force expression, only for a law whose registry row needs one
+//                              # ("expression"); an expression without a name selects that law
 //   [law.parameters]           # NAME = number; missing ones take the law's defaults
 //   k = 1.0e7
 //   gamma = 0.5
@@ -66,6 +68,7 @@
 #include <toml++/toml.h>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 
 namespace bouncecal {
 
@@ -141,6 +144,12 @@ std::string Num(double v) {
   return buf;
 }
 
+// The law's registry row says whether it is defined by an expression (no name checks here).
+bool NeedsExpression(const std::string& law_name) {
+  const LawInfo* row = FindLaw(law_name);
+  return row != nullptr && row->needs_expression;
+}
+
 std::string KnownMaterials() {
   std::string s;
   for (const MaterialPreset& p : MaterialPresets()) s += (s.empty() ? "" : ", ") + p.name;
@@ -187,6 +196,33 @@ double Surface::ResolvedPoissonRatio() const {
   if (poisson_ratio) return *poisson_ratio;
   const MaterialPreset* p = FindMaterial(material);
   return p ? p->poisson_ratio : kNaN;
+}
+
+std::optional<double> EffectiveModulusPa(const Scene& scene, std::string* why) {
+  struct Body {
+    const char* key;
+    const std::string& material;
+    double youngs_pa, poisson;
+  };
+  const Body bodies[] = {
+      {"ball", scene.ball.material, scene.ball.ResolvedYoungsModulusPa(),
+       scene.ball.ResolvedPoissonRatio()},
+      {"surface", scene.surface.material, scene.surface.ResolvedYoungsModulusPa(),
+       scene.surface.ResolvedPoissonRatio()},
+  };
+  double compliance_per_pa = 0.0;  // 1/E*
+  for (const Body& b : bodies) {
+    if (!(std::isfinite(b.youngs_pa) && b.youngs_pa > 0.0 && b.poisson > -1.0 &&
+          b.poisson <= 0.5)) {
+      if (why) {
+        *why = std::string(b.key) + ".youngs_modulus_pa/poisson_ratio: unknown for material \"" +
+               b.material + "\"";
+      }
+      return std::nullopt;
+    }
+    compliance_per_pa += (1.0 - b.poisson * b.poisson) / b.youngs_pa;
+  }
+  return 1.0 / compliance_per_pa;
 }
 
 double Scene::EffectiveGravity() const {
@@ -334,12 +370,12 @@ void Validate(const Scene& s, Checker* checker) {
     if (name.empty()) c.Fail("law.parameters", "empty parameter name");
     c.Finite("law.parameters." + name, value);
   }
-  if (law.name == "expression" && law.expression.empty()) {
-    c.Fail("law.expression", "missing: law \"expression\" needs a force expression");
+  if (NeedsExpression(law.name) && law.expression.empty()) {
+    c.Fail("law.expression", "missing: law \"" + law.name + "\" needs a force expression");
   }
-  if (law.name != "expression" && !law.expression.empty()) {
-    c.Fail("law.expression",
-           "only allowed with law.name = \"expression\" (got name \"" + law.name + "\")");
+  if (!NeedsExpression(law.name) && !law.expression.empty()) {
+    c.Fail("law.expression", "only allowed with law.name = \"" + ExpressionLawName() +
+                                 "\" (got name \"" + law.name + "\")");
   }
   // Limits.
   c.Positive("limits.horizon_s", limits.horizon_s);
@@ -648,15 +684,17 @@ class SceneReader {
       }
     }
     const toml::node* expr = t.get("expression");
-    if (expr && !s->law.expression.empty() && s->law.name != "expression") {
+    if (expr && !s->law.expression.empty() && !NeedsExpression(s->law.name)) {
       if (!t.contains("name")) {
-        s->law.name = "expression";
+        s->law.name = ExpressionLawName();
       } else {
-        Fail(*expr, "law.expression", "only allowed with law.name = \"expression\"");
+        Fail(*expr, "law.expression",
+             "only allowed with law.name = \"" + ExpressionLawName() + "\"");
       }
     }
-    if (s->law.name == "expression" && s->law.expression.empty()) {
-      Fail(t.source(), "law.expression", "missing: law \"expression\" needs a force expression");
+    if (NeedsExpression(s->law.name) && s->law.expression.empty()) {
+      Fail(t.source(), "law.expression",
+           "missing: law \"" + s->law.name + "\" needs a force expression");
     }
   }
 

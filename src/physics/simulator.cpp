@@ -1,23 +1,49 @@
 // The bounce simulator: closed-form flights, integrated (or closed-form) contacts, clean stops.
 // The model and its documented choices are in include/bouncecal/physics/simulator.hpp.
+// One loop serves Simulate (scalar type double) and SimulateWithSensitivities (SensitivityJet:
+// every time and speed carries its derivatives with respect to the law's parameters and the
+// first impact speed).
 #include "bouncecal/physics/simulator.hpp"
 
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <type_traits>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/flight.hpp"
+#include "physics/scalar.hpp"
 
 namespace bouncecal {
 namespace {
+
+using Jet = SensitivityJet;
 
 std::string Num(double v) {
   std::ostringstream os;
   os.precision(6);
   os << v;
   return os.str();
+}
+
+double Val(double x) { return x; }
+double Val(const Jet& x) { return x.a; }
+using scalar::Quotient;
+
+// The flight's closed forms in either scalar type (the Jet by their exact derivatives).
+double FlightTimeOf(const FlightModel& f, double v0) { return f.FlightTime(v0); }
+Jet FlightTimeOf(const FlightModel& f, const Jet& v0) {
+  Jet out(f.FlightTime(v0.a));
+  out.v = f.FlightTimeDerivative(v0.a) * v0.v;
+  return out;
+}
+double ArrivalSpeedOf(const FlightModel& f, double v0) { return f.ArrivalSpeed(v0); }
+Jet ArrivalSpeedOf(const FlightModel& f, const Jet& v0) {
+  Jet out(f.ArrivalSpeed(v0.a));
+  out.v = f.ArrivalSpeedDerivative(v0.a) * v0.v;
+  return out;
 }
 
 // The law's closed form for this contact, when allowed (see simulator.hpp).
@@ -33,47 +59,90 @@ std::optional<ContactOutcome> ClosedForm(const ContactLaw& law, std::span<const 
   return law.SolveContact(p, body, v_in);
 }
 
-ContactRunOptions RunOptions(const SimulatorOptions& options, double stuck_speed_m_s) {
+ContactRunOptions RunOptions(const SimulatorOptions& options, double stuck_speed_m_s,
+                             const std::string& label) {
   ContactRunOptions r;
   r.rel_tolerance = options.rel_tolerance;
   r.abs_tolerance = options.abs_tolerance;
   r.max_steps = options.max_steps_per_contact;
   r.stuck_speed_m_s = stuck_speed_m_s;
+  r.label = label;
   return r;
 }
 
-// One contact, closed form or integrated, in the integrator's result format.
-ContactRun OneContact(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
-                      double v_in, double g, const PlateModel* plate,
-                      const SimulatorOptions& options, double stuck_speed_m_s) {
-  const double g_contact = options.gravity_in_contact ? g : 0.0;
-  if (auto cf = ClosedForm(law, p, body, v_in, g_contact, options, plate != nullptr)) {
-    ContactRun r;
-    r.closed_form = true;
-    r.contact_time_scale_s = cf->contact_time_s;
-    r.peak_overlap_m = cf->peak_overlap_m;
-    r.peak_force_n = cf->peak_force_n;
-    const double m = body.mass_kg;
-    if (cf->stuck || !(cf->restitution > 0.0) || cf->restitution * v_in <= stuck_speed_m_s) {
-      r.end = ContactRun::End::kStuck;
-      r.detail =
-          law.Name() + ": closed form gives no rebound (restitution " + Num(cf->restitution) + ")";
-      r.contact_s = std::isfinite(cf->contact_time_s) ? cf->contact_time_s : 0.0;
-      r.work_j = 0.5 * m * v_in * v_in;
-      return r;
-    }
-    r.end = ContactRun::End::kSeparated;
-    r.v_out_m_s = cf->restitution * v_in;
-    r.contact_s = cf->contact_time_s;
-    r.separation_depth_m = cf->end_overlap_m;
-    // elastic_end_j stays 0: what the law holds at separation is lost with it (the ledger
-    // counts all of work_j as dissipated), and the closed form has no end state to ask.
-    // Without gravity the ball's energy balance gives the work done on the contact exactly.
-    r.work_j = 0.5 * m * (v_in * v_in - r.v_out_m_s * r.v_out_m_s);
-    r.ball_energy_end_j = 0.5 * m * r.v_out_m_s * r.v_out_m_s;
+// The closed-form contact in the integrator's result format.
+ContactRun FromClosedForm(const ContactLaw& law, const ContactOutcome& cf, const ContactBody& body,
+                          double v_in, double stuck_speed_m_s) {
+  ContactRun r;
+  r.closed_form = true;
+  r.contact_time_scale_s = cf.contact_time_s;
+  r.peak_overlap_m = cf.peak_overlap_m;
+  r.peak_force_n = cf.peak_force_n;
+  const double m = body.mass_kg;
+  if (cf.stuck || !(cf.restitution > 0.0) || cf.restitution * v_in <= stuck_speed_m_s) {
+    r.end = ContactRun::End::kStuck;
+    r.detail =
+        law.Name() + ": closed form gives no rebound (restitution " + Num(cf.restitution) + ")";
+    r.contact_s = std::isfinite(cf.contact_time_s) ? cf.contact_time_s : 0.0;
+    r.work_j = 0.5 * m * v_in * v_in;
     return r;
   }
-  return RunContact(law, p, body, v_in, g_contact, plate, RunOptions(options, stuck_speed_m_s));
+  r.end = ContactRun::End::kSeparated;
+  r.v_out_m_s = cf.restitution * v_in;
+  r.contact_s = cf.contact_time_s;
+  r.separation_depth_m = cf.end_overlap_m;
+  // elastic_end_j stays 0: what the law holds at separation is lost with it (the ledger
+  // counts all of work_j as dissipated), and the closed form has no end state to ask.
+  // Without gravity the ball's energy balance gives the work done on the contact exactly.
+  r.work_j = 0.5 * m * (v_in * v_in - r.v_out_m_s * r.v_out_m_s);
+  r.ball_energy_end_j = 0.5 * m * r.v_out_m_s * r.v_out_m_s;
+  return r;
+}
+
+// One contact (closed form or integrated) in the integrator's result format, with its outcome
+// in scalar type T: for T = Jet, the derivatives of v_out, contact time and separation depth
+// with respect to theta (chained through the derivatives of v_in).
+template <class T>
+struct Contact {
+  ContactRun run;
+  T v_out, contact_s, depth;
+};
+
+template <class T>
+Contact<T> OneContact(const ContactLaw& law, std::span<const double> p,
+                      const ContactDynamics& dynamics, const ContactBody& body, const T& v_in,
+                      double g, const PlateModel* plate, const SimulatorOptions& options,
+                      double stuck_speed_m_s) {
+  constexpr bool kSensitive = std::is_same_v<T, Jet>;
+  const double v = Val(v_in);
+  const double g_contact = options.gravity_in_contact ? g : 0.0;
+  const ContactRunOptions ro = RunOptions(options, stuck_speed_m_s, law.Name());
+  ContactSensitivity sens;
+  Contact<T> c;
+  if (auto cf = ClosedForm(law, p, body, v, g_contact, options, plate != nullptr)) {
+    c.run = FromClosedForm(law, *cf, body, v, stuck_speed_m_s);
+    if (kSensitive && c.run.end == ContactRun::End::kSeparated) {
+      // Derivatives of what the closed form describes: the contact without gravity.
+      RunContact(dynamics, body, cf->contact_time_s, v, 0.0, nullptr, ro, &sens);
+    }
+  } else {
+    const double t_c = EstimateContactTime(law, p, dynamics, body, v);
+    c.run = RunContact(dynamics, body, t_c, v, g_contact, plate, ro, kSensitive ? &sens : nullptr);
+  }
+  c.v_out = T(c.run.v_out_m_s);
+  c.contact_s = T(c.run.contact_s);
+  c.depth = T(c.run.separation_depth_m);
+  if constexpr (kSensitive) {
+    const int np = static_cast<int>(p.size());
+    for (int j = 0; j < kSensitivityDirections; ++j) {
+      const double dv = v_in.v[j];
+      const double own = j < np;  // the law's own parameters enter directly
+      c.v_out.v[j] = own * sens.v_out[j] + sens.v_out[np] * dv;
+      c.contact_s.v[j] = own * sens.contact_s[j] + sens.contact_s[np] * dv;
+      c.depth.v[j] = own * sens.separation_depth_m[j] + sens.separation_depth_m[np] * dv;
+    }
+  }
+  return c;
 }
 
 }  // namespace
@@ -135,8 +204,10 @@ ContactOutcome SimulateContact(const ContactLaw& law, std::span<const double> pa
   }
   SimulatorOptions o = options;
   o.gravity_in_contact = true;  // the caller's g is what it asks for
-  const ContactRun r = OneContact(law, params, body, v_in_m_s, g_m_s2, nullptr, o,
-                                  options.stuck_restitution * v_in_m_s);
+  const std::unique_ptr<ContactDynamics> dynamics = law.Dynamics(params, body);
+  const ContactRun r = OneContact<double>(law, params, *dynamics, body, v_in_m_s, g_m_s2, nullptr,
+                                          o, options.stuck_restitution * v_in_m_s)
+                           .run;
   if (steps) *steps = r.steps;
   if (r.end == ContactRun::End::kStepLimit) throw Error(ErrorCode::kBadParameter, r.detail);
   ContactOutcome out;
@@ -149,31 +220,63 @@ ContactOutcome SimulateContact(const ContactLaw& law, std::span<const double> pa
   return out;
 }
 
-Simulation Simulate(const Scene& scene, const ContactLaw& law, std::span<const double> params,
-                    const SimulatorOptions& options) {
+namespace {
+
+// What one simulation needs besides the loop: checked inputs, the law prepared, the flights.
+struct Setup {
+  ContactBody body;
+  PlateModel plate_model;
+  const PlateModel* plate = nullptr;
+  std::unique_ptr<ContactDynamics> dynamics;
+};
+
+Setup Prepare(const Scene& scene, const ContactLaw& law, std::span<const double> params,
+              const SimulatorOptions& options) {
   std::string why;
   if (!scene.IsValid(&why)) throw Error(ErrorCode::kBadScene, why);
   if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "simulator: " + why);
-  const double m = scene.ball.Mass();
-  const ContactBody body = ContactBody::BallOnRigidWall(m, scene.ball.Radius());
-  if (!law.IsValid(params, body, &why)) throw Error(ErrorCode::kBadParameter, why);
-
-  PlateModel plate_model;
-  const PlateModel* plate = nullptr;
+  Setup s;
+  s.body = ContactBody::BallOnRigidWall(scene.ball.Mass(), scene.ball.Radius());
+  if (!law.IsValid(params, s.body, &why)) throw Error(ErrorCode::kBadParameter, why);
   if (scene.effects.surface_compliance) {
-    plate_model = {scene.surface.mass_kg, scene.surface.stiffness_n_m, scene.surface.damping_n_s_m};
-    if (!(plate_model.mass_kg > 0.0) || !(plate_model.stiffness_n_m > 0.0) ||
-        !(plate_model.damping_n_s_m >= 0.0) || !std::isfinite(plate_model.mass_kg) ||
-        !std::isfinite(plate_model.stiffness_n_m) || !std::isfinite(plate_model.damping_n_s_m)) {
+    s.plate_model = {scene.surface.mass_kg, scene.surface.stiffness_n_m,
+                     scene.surface.damping_n_s_m};
+    const PlateModel& pm = s.plate_model;
+    if (!(pm.mass_kg > 0.0) || !(pm.stiffness_n_m > 0.0) || !(pm.damping_n_s_m >= 0.0) ||
+        !std::isfinite(pm.mass_kg) || !std::isfinite(pm.stiffness_n_m) ||
+        !std::isfinite(pm.damping_n_s_m)) {
       throw Error(ErrorCode::kBadScene,
                   "surface compliance needs surface mass_kg > 0, stiffness_n_m > 0 and "
                   "damping_n_s_m >= 0 (got " +
-                      Num(plate_model.mass_kg) + ", " + Num(plate_model.stiffness_n_m) + ", " +
-                      Num(plate_model.damping_n_s_m) + ")");
+                      Num(pm.mass_kg) + ", " + Num(pm.stiffness_n_m) + ", " +
+                      Num(pm.damping_n_s_m) + ")");
     }
-    plate = &plate_model;
+    s.plate = &s.plate_model;
   }
+  s.dynamics = law.Dynamics(params, s.body);
+  return s;
+}
 
+template <class T>
+void RecordSensitivities(const T& t, const T& v, const Contact<T>& c, size_t directions,
+                         SimulationSensitivities* out) {
+  if constexpr (std::is_same_v<T, Jet>) {
+    auto row = [&](const Jet& x) {
+      return std::vector<double>(x.v.data(), x.v.data() + directions);
+    };
+    out->time_s.push_back(row(t));
+    out->v_in_m_s.push_back(row(v));
+    out->v_out_m_s.push_back(row(c.v_out));
+    out->contact_s.push_back(row(c.contact_s));
+  }
+}
+
+// The bounce loop in scalar type T (see the top of this file).
+template <class T>
+Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double> params,
+               const SimulatorOptions& options, SimulationSensitivities* sens) {
+  Setup setup = Prepare(scene, law, params, options);
+  const double m = setup.body.mass_kg;
   const FlightModel flight = FlightModel::FromScene(scene);
   const double g = flight.gravity_m_s2();
   const bool has_drag = flight.drag() != DragModel::kNone;
@@ -181,18 +284,19 @@ Simulation Simulate(const Scene& scene, const ContactLaw& law, std::span<const d
   Simulation sim;
   EnergyLedger& en = sim.energy;
 
-  // Initial condition.
-  double v = 0.0;
+  // Initial condition; for the sensitivities, direction P (after the parameters) is v_first.
+  T v(0.0);
   if (scene.drop.impact_speed_m_s) {
-    v = *scene.drop.impact_speed_m_s;
-    en.initial_j = 0.5 * m * v * v;
+    v = T(*scene.drop.impact_speed_m_s);
+    en.initial_j = 0.5 * m * Val(v) * Val(v);
   } else {
     const double h = scene.drop.height_m.value_or(0.0);
-    v = flight.FallArrivalSpeed(h);
+    v = T(flight.FallArrivalSpeed(h));
     en.initial_j = m * g * h;  // potential energy in g_eff (buoyancy is conservative)
-    if (has_drag) en.dissipated_drag_j = en.initial_j - 0.5 * m * v * v;
+    if (has_drag) en.dissipated_drag_j = en.initial_j - 0.5 * m * Val(v) * Val(v);
   }
-  double t = scene.drop.first_impact_time_s;
+  if constexpr (std::is_same_v<T, Jet>) v.v[static_cast<int>(params.size())] = 1.0;
+  T t(scene.drop.first_impact_time_s);
 
   auto stop = [&](StopReason reason, const std::string& detail, double final_j) {
     sim.stop_reason = reason;
@@ -205,39 +309,44 @@ Simulation Simulate(const Scene& scene, const ContactLaw& law, std::span<const d
 
   while (true) {
     const int k = static_cast<int>(sim.impacts.size());
+    const double vv = Val(v);
     if (k >= lim.max_impacts) {
       return stop(StopReason::kMaxImpacts,
-                  std::to_string(k) + " impacts simulated (limits.max_impacts)", 0.5 * m * v * v);
+                  std::to_string(k) + " impacts simulated (limits.max_impacts)", 0.5 * m * vv * vv);
     }
-    if (!(v > lim.rest_speed_m_s) || v == 0.0) {
+    if (!(vv > lim.rest_speed_m_s) || vv == 0.0) {
       return stop(StopReason::kAtRest,
-                  "arrival speed " + Num(v) + " m/s at impact " + std::to_string(k) +
+                  "arrival speed " + Num(vv) + " m/s at impact " + std::to_string(k) +
                       " is below rest_speed_m_s = " + Num(lim.rest_speed_m_s),
-                  0.5 * m * v * v);
+                  0.5 * m * vv * vv);
     }
-    const double stuck_speed = std::max(lim.rest_speed_m_s, options.stuck_restitution * v);
-    const ContactRun c = OneContact(law, params, body, v, g, plate, options, stuck_speed);
+    const double stuck_speed = std::max(lim.rest_speed_m_s, options.stuck_restitution * vv);
+    const Contact<T> contact = OneContact<T>(law, params, *setup.dynamics, setup.body, v, g,
+                                             setup.plate, options, stuck_speed);
+    const ContactRun& c = contact.run;
     sim.total_steps += c.steps;
     SimImpact imp;
-    imp.time_s = t;
-    imp.v_in_m_s = v;
+    imp.time_s = Val(t);
+    imp.v_in_m_s = vv;
     imp.v_out_m_s = c.end == ContactRun::End::kSeparated ? c.v_out_m_s : 0.0;
     imp.contact_s = c.contact_s;
     imp.peak_overlap_m = c.peak_overlap_m;
     imp.peak_force_n = c.peak_force_n;
     imp.steps = c.steps;
+    imp.rejected_steps = c.rejected;
     sim.impacts.push_back(imp);
+    if (sens) RecordSensitivities(t, v, contact, params.size() + 1, sens);
 
     if (c.end != ContactRun::End::kSeparated) {
       // Ball held in the contact: what is left is mechanical (ball, law's elastic, plate).
       en.dissipated_contact_j += c.work_j - c.elastic_end_j - c.plate_end_j - c.internal_end_j;
       en.internal_j += c.internal_end_j;
       const double final_j = c.ball_energy_end_j + c.elastic_end_j + c.plate_end_j;
-      const std::string where = " at impact " + std::to_string(k) + " (t = " + Num(t) + " s)";
+      const std::string where = " at impact " + std::to_string(k) + " (t = " + Num(Val(t)) + " s)";
       if (c.end == ContactRun::End::kStepLimit) {
         return stop(StopReason::kStepLimit, c.detail + where, final_j);
       }
-      const bool gravity_holds = v < 10.0 * g * c.contact_time_scale_s;
+      const bool gravity_holds = vv < 10.0 * g * c.contact_time_scale_s;
       return stop(
           gravity_holds ? StopReason::kAtRest : StopReason::kStuck,
           (gravity_holds ? "gravity holds the slow ball on the surface: " : "") + c.detail + where,
@@ -249,47 +358,72 @@ Simulation Simulate(const Scene& scene, const ContactLaw& law, std::span<const d
 
     // From the separation point (separation_depth_m below the surface level) to the level,
     // in vacuum (see simulator.hpp), then the closed-form flight.
-    const double v_sep = c.v_out_m_s;
-    const double v0_sq = v_sep * v_sep - 2.0 * g * c.separation_depth_m;
-    if (!(v0_sq > 0.0)) {
+    const T& v_sep = contact.v_out;
+    const T v0_sq = v_sep * v_sep - 2.0 * g * contact.depth;
+    if (!(Val(v0_sq) > 0.0)) {
       return stop(StopReason::kAtRest,
                   "the ball separates " + Num(c.separation_depth_m) + " m below the surface at " +
-                      Num(v_sep) + " m/s and cannot rise above it (impact " + std::to_string(k) +
-                      ")",
-                  0.5 * m * v0_sq);
+                      Num(c.v_out_m_s) + " m/s and cannot rise above it (impact " +
+                      std::to_string(k) + ")",
+                  0.5 * m * Val(v0_sq));
     }
-    const double v0 = std::sqrt(v0_sq);
-    const double t_launch = t + c.contact_s + (g > 0.0 ? (v_sep - v0) / g : 0.0);
-    const double flight_s = flight.FlightTime(v0);
-    const double v_next = flight.ArrivalSpeed(v0);
-    const double t_next = t_launch + flight_s;
-    if (t_next > lim.horizon_s) {
-      double h = 0.0, vel = v0;
-      if (lim.horizon_s > t_launch) flight.State(v0, lim.horizon_s - t_launch, &h, &vel);
+    using std::sqrt;
+    const T v0 = sqrt(v0_sq);
+    const T t_launch = t + contact.contact_s + (g > 0.0 ? Quotient(v_sep - v0, g) : T(0.0));
+    const T flight_s = FlightTimeOf(flight, v0);
+    const T v_next = ArrivalSpeedOf(flight, v0);
+    const T t_next = t_launch + flight_s;
+    const double v0v = Val(v0);
+    if (Val(t_next) > lim.horizon_s) {
+      double h = 0.0, vel = v0v;
+      if (lim.horizon_s > Val(t_launch)) flight.State(v0v, lim.horizon_s - Val(t_launch), &h, &vel);
       const double final_j = m * g * h + 0.5 * m * vel * vel;
-      if (has_drag) en.dissipated_drag_j += 0.5 * m * v0 * v0 - final_j;
+      if (has_drag) en.dissipated_drag_j += 0.5 * m * v0v * v0v - final_j;
       return stop(
           StopReason::kHorizon,
-          "next impact at " + Num(t_next) + " s is beyond horizon_s = " + Num(lim.horizon_s),
+          "next impact at " + Num(Val(t_next)) + " s is beyond horizon_s = " + Num(lim.horizon_s),
           final_j);
     }
-    if (has_drag) en.dissipated_drag_j += 0.5 * m * (v0 * v0 - v_next * v_next);
+    if (has_drag) en.dissipated_drag_j += 0.5 * m * (v0v * v0v - Val(v_next) * Val(v_next));
 
     // Zeno: with restitution e < 1 the remaining flights form (at most) a geometric series
     // T e / (1 - e) (flight time is proportional to, or grows slower than, the launch speed).
-    const double e = v0 / v;
-    if (e < 1.0 && flight_s * e / (1.0 - e) < options.time_resolution_s) {
-      t = t_next;
-      v = v_next;
+    const double e = v0v / vv;
+    t = t_next;
+    v = v_next;
+    if (e < 1.0 && Val(flight_s) * e / (1.0 - e) < options.time_resolution_s) {
       return stop(StopReason::kAtRest,
                   "Zeno tail: the remaining flights after impact " + std::to_string(k) +
                       " last less than time_resolution_s = " + Num(options.time_resolution_s) +
                       " s in total",
-                  0.5 * m * v * v);
+                  0.5 * m * Val(v) * Val(v));
     }
-    t = t_next;
-    v = v_next;
   }
+}
+
+}  // namespace
+
+Simulation Simulate(const Scene& scene, const ContactLaw& law, std::span<const double> params,
+                    const SimulatorOptions& options) {
+  return Run<double>(scene, law, params, options, nullptr);
+}
+
+Simulation SimulateWithSensitivities(const Scene& scene, const ContactLaw& law,
+                                     std::span<const double> params,
+                                     const SimulatorOptions& options,
+                                     SimulationSensitivities* sensitivities) {
+  if (params.size() > static_cast<size_t>(kMaxSensitivityParameters)) {
+    throw Error(ErrorCode::kBadParameter, "law " + law.Name() + ": sensitivities for at most " +
+                                              std::to_string(kMaxSensitivityParameters) +
+                                              " parameters (got " + std::to_string(params.size()) +
+                                              ")");
+  }
+  SimulationSensitivities local;
+  SimulationSensitivities* out = sensitivities ? sensitivities : &local;
+  *out = SimulationSensitivities{};
+  for (const ParameterSpec& spec : law.Parameters()) out->names.push_back(spec.name);
+  out->names.push_back("v_first_m_s");
+  return Run<Jet>(scene, law, params, options, out);
 }
 
 }  // namespace bouncecal

@@ -26,13 +26,14 @@
 #include <vector>
 
 #include "bouncecal/physics/contact_law.hpp"
+#include "bouncecal/physics/pointwise_law.hpp"
 
 namespace bouncecal {
 
 enum class NativeForm { kLinear, kHertzTsuji, kHertzViscoelastic };
 const char* NativeFormName(NativeForm form);  // "linear", "hertz_tsuji", "hertz_viscoelastic"
 
-class NativeModel final : public ContactLaw {
+class NativeModel final : public PointwiseContactLaw {
  public:
   NativeModel(NativeForm form, bool clip, double stiffness, double damping);
 

@@ -4,22 +4,38 @@
 // (m, 0 at first touch) obeys m y'' = m g - F(delta, delta', state) with delta = y - z the
 // overlap; z is the plate's displacement when the surface is a mass on a spring and dashpot
 // (M z'' = F - K z - C z', Surface::kSpringMass), else 0. The law's internal state obeys its
-// own ODEs (ContactLaw::StateRate). Gravity during the contact is included (g_m_s2); the laws'
-// closed forms neglect it, so pass g_m_s2 = 0 to compare with them.
+// own ODEs (ContactDynamics::StateRate). Gravity during the contact is included (g_m_s2); the
+// laws' closed forms neglect it, so pass g_m_s2 = 0 to compare with them.
 //
-// Integration: Boost.Odeint runge_kutta_dopri5 under its controlled stepper, with the
-// dopri5 dense output (calc_state) used to LOCATE events inside an accepted step:
-//   - the contact end (delta = 0, or F = 0 for laws whose EndRule() is kForceZero),
-//   - sign changes of the law's SwitchFunction (Walton-Braun's loading -> unloading branch).
-// A switch is never stepped over: every trial point of a step is evaluated on the branch the
-// step started on (ContactLaw::ForceOnBranch continues that branch smoothly past the switch),
-// so the step and its dense output stay smooth; the sign change is located on the dense
-// output (Illinois/bisection, 1e-14 relative in time), the step is cut there and the
-// integrator restarts on the other branch. The end event is continuous (the force is
-// extended past delta = 0 by F(0, delta')), so it is located the same way.
-// Variables are scaled to the contact's natural units before integration: time by a
-// contact-time estimate t_c (closed form if the law has one, else from the elastic energy),
-// velocity by v_in, overlap by v_in t_c, energy by m v_in^2 / 2; tolerances apply to these.
+// Integration: the Dormand-Prince 5(4) pair with its continuous extension and a PI step
+// controller (physics/dopri5.hpp), on variables scaled to the contact's natural units (time by
+// a contact-time estimate t_c, velocity by v_in, overlap by v_in t_c, energy by m v_in^2 / 2,
+// law state by ContactDynamics::StateScale); the error of a step is the RMS over the scaled
+// variables of err_i / (abs_tolerance + rel_tolerance/4 max(1, |x_i|)) — absolute control in
+// the contact's own units (the factor 1/4 keeps every law's errors at a given rel_tolerance at
+// or below those of the previous integrator: bench_simulate). The first step is a fixed
+// fraction of the contact (0.5 (rel_tolerance/4)^(1/5) of it), not a blind guess. Errors of
+// e and of the contact time fall in proportion to rel_tolerance
+// (tests/contact_integrator_test.cpp: about 2-3 rel_tolerance per contact for every law).
+// Three phases, so that every step sees a smooth solution:
+//   - approach: forces like delta^(3/2) and delta^(1/4) delta' are not smooth in time at first
+//     touch (t^(1/4): step sizes collapse there). The law says in which root of delta it is
+//     smooth (ContactDynamics::OverlapRoot q); while delta' > 0.7 v_in the independent variable
+//     is u = (delta / L)^(1/q) (time becomes a state variable, dt/du = q u^(q-1) L / delta').
+//   - middle: time is the independent variable around the maximum compression; events are
+//     LOCATED inside accepted steps on the dense output (Illinois, 1e-14 relative in time):
+//     sign changes of the law's Switch (Walton-Braun's loading -> unloading branch: every trial
+//     point of a step is evaluated on the branch the step started on, the switch is located,
+//     the step cut there and the integrator restarted on the other branch) and, for laws smooth
+//     in delta (q = 1) or ending at F = 0, the contact end.
+//   - exit: for laws with q > 1 ending at delta = 0, once delta' < 0 and delta < 0.7 of its
+//     peak, u again, integrated down to u = 0 exactly: the end is the end of the last step (no
+//     root finding, no step across the singular end). If delta' fades (a creeping, overdamped
+//     ball) the integrator returns to time, where the stuck tests live.
+// Forward sensitivities (RunContact with a ContactSensitivity): the same integration in
+// SensitivityJet arithmetic (contact_dynamics.hpp) with the step sequence of the values, so the
+// derivatives are those of the computed solution; event times and phase changes carry their
+// own derivatives (implicit function theorem), and so do the jumps at branch switches.
 //
 //   ContactRun r = RunContact(law, p, body, 1.98, 9.8, nullptr, ContactRunOptions{});
 //   if (r.end == ContactRun::End::kSeparated) ... r.v_out_m_s, r.contact_s
@@ -29,9 +45,11 @@
 // then still below the undeformed surface, separation_depth_m > 0).
 #pragma once
 
+#include <array>
 #include <span>
 #include <string>
 
+#include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_law.hpp"
 
 namespace bouncecal {
@@ -53,6 +71,7 @@ struct ContactRunOptions {
   double stuck_speed_m_s = 0.0;
   // ... or when the contact lasts longer than this many contact-time estimates.
   double max_contact_time_factor = 1e5;
+  std::string label = "contact";  // names the law in messages
 };
 
 struct ContactRun {
@@ -75,18 +94,36 @@ struct ContactRun {
   double ball_energy_end_j = 0.0;     // ball kinetic + potential (rel. first touch) at the end
   double contact_time_scale_s = 0.0;  // the t_c estimate used for scaling
   int steps = 0;                      // attempted steps (0 for closed form)
-  int switches = 0;                   // located SwitchFunction sign changes
+  int rejected = 0;                   // of which rejected by the error control
+  int switches = 0;                   // located Switch sign changes
   bool closed_form = false;
+};
+
+// Derivatives of a separated contact's outcome: direction j < P (the law's parameter count) is
+// p_j, direction P the impact speed v_in; later directions are 0.
+struct ContactSensitivity {
+  std::array<double, kSensitivityDirections> v_out{};               // d v_out / d theta_j
+  std::array<double, kSensitivityDirections> contact_s{};           // d contact_s / d theta_j
+  std::array<double, kSensitivityDirections> separation_depth_m{};  // d depth / d theta_j
 };
 
 // An a-priori contact-time estimate (s) for scaling and decisions: the law's ContactTime
 // closed form when it has one, else 3 delta_max / v_in with delta_max from the elastic energy
 // (ElasticEnergy(delta_max) = m v_in^2 / 2; exact factor: pi for linear, 2.94 for Hertz).
 double EstimateContactTime(const ContactLaw& law, std::span<const double> p,
-                           const ContactBody& body, double v_in_m_s);
+                           const ContactDynamics& dynamics, const ContactBody& body,
+                           double v_in_m_s);
 
 // Integrates one contact from first touch at speed v_in_m_s > 0 (downward). plate may be null
 // (rigid surface). Never throws for a valid law/parameter set; failures are reported in end.
+// With sensitivity non-null (and at most kMaxSensitivityParameters parameters) the derivatives
+// of the outcome are computed too (for a separated contact; zeros otherwise).
+ContactRun RunContact(const ContactDynamics& dynamics, const ContactBody& body,
+                      double contact_time_scale_s, double v_in_m_s, double g_m_s2,
+                      const PlateModel* plate, const ContactRunOptions& options,
+                      ContactSensitivity* sensitivity = nullptr);
+
+// Convenience: prepares the law's dynamics and its contact-time estimate, then integrates.
 ContactRun RunContact(const ContactLaw& law, std::span<const double> p, const ContactBody& body,
                       double v_in_m_s, double g_m_s2, const PlateModel* plate,
                       const ContactRunOptions& options);

@@ -11,16 +11,21 @@
 //   ContactBody body = BodyFromScene(scene);                            // m* = m, R* = R
 //   std::vector<double> p = law->ParameterValues();
 //   double e = law->Restitution(p, body, 1.5).value();                 // closed form, if any
+//   auto dynamics = law->Dynamics(p, body);   // force, state rate, energies (contact_dynamics.hpp)
 //
 // Conventions (PHYSICS.md §3): m* is the effective mass, R* the effective radius; a ball on a
 // rigid wall has m* = m, R* = R. Closed forms neglect gravity during the contact (it is
 // included by the simulator). Parameters are passed as a flat vector in the order of
 // Parameters(), so the fitter can hand Ceres a raw pointer; names and units live in the specs.
+// A law's name, formula, source, end rule and the list of its closed forms are the columns of
+// its row in the registry table (src/physics/law_registry.cpp), not code in the law.
 //
 // Common mistakes: stiffness k is in the law's own units (N/m for linear laws, N/m^1.5 for
-// Hertz-type laws); the contact ends at delta = 0 unless EndRule() says kForceZero.
+// Hertz-type laws); the contact ends at delta = 0 unless EndRule() says kForceZero; the
+// dynamics object borrows the law (keep the law alive while it is used).
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -66,11 +71,13 @@ struct ContactOutcome {
   bool stuck = false;          // the ball never leaves (overdamped): restitution 0, time inf
 };
 
+class ContactDynamics;  // contact_dynamics.hpp
+
 class ContactLaw {
  public:
   virtual ~ContactLaw() = default;
 
-  // --- identity and parameters -------------------------------------------------------------
+  // --- identity and parameters (name, formula, source, end rule: the law's registry row) ----
   virtual std::string Name() const = 0;     // registry name, e.g. "hertz-tsuji"
   virtual std::string Formula() const = 0;  // "F = k d^1.5 + eta d^0.25 d'", one line
   virtual std::string Source() const = 0;   // paper + equation
@@ -82,53 +89,18 @@ class ContactLaw {
   // The message names the parameter, its value and the rule.
   virtual bool IsValid(std::span<const double> p, const ContactBody& body,
                        std::string* error) const;
-
-  // --- dynamics -----------------------------------------------------------------------------
-  // Constants derived from (p, body) that a law would otherwise recompute at every force
-  // evaluation (Hertz-Tsuji's eta = alpha(e) sqrt(m* k), alpha from a table). The integrator
-  // calls PrepareParameters once per contact and then passes the EXTENDED vector
-  // [p..., prepared...] (p.size() == Parameters().size() + PreparedSize()) to Force,
-  // ForceOnBranch, SwitchFunction and StateRate; every other caller passes plain p. Laws
-  // that prepare must therefore accept both sizes (use the prepared values when present).
-  virtual int PreparedSize() const { return 0; }
-  virtual void PrepareParameters(std::span<const double> /*p*/, const ContactBody& /*body*/,
-                                 double* /*prepared*/) const {}
-  virtual ContactEnd EndRule() const { return ContactEnd::kOverlapZero; }
+  virtual ContactEnd EndRule() const = 0;
   // Number of internal state variables (Jiang-Liu relaxation energy, hysteresis memory...).
-  virtual int StateSize() const { return 0; }
-  // Internal state at first touch (delta = 0, delta_dot = v_in > 0).
-  virtual void InitialState(std::span<const double> p, const ContactBody& body, double v_in_m_s,
-                            double* state) const;
-  // Normal force on the ball, N, positive = repulsive.
-  virtual double Force(std::span<const double> p, const ContactBody& body, double delta_m,
-                       double delta_dot_m_s, const double* state) const = 0;
-  // d(state)/dt. Laws with StateSize() == 0 need not override.
-  virtual void StateRate(std::span<const double> p, const ContactBody& body, double delta_m,
-                         double delta_dot_m_s, const double* state, double* rate) const;
-  // Laws whose force switches discontinuously (loading/unloading branch) report the switch as
-  // an event the integrator must locate: the simulator stops the step at sign changes of
-  // SwitchFunction. Default: none (returns +1).
-  virtual double SwitchFunction(std::span<const double> p, const ContactBody& body, double delta_m,
-                                double delta_dot_m_s, const double* state) const;
-  // The force on one side of the switch, continued smoothly past it: positive_branch selects
-  // the branch where SwitchFunction > 0. An adaptive integrator must evaluate every trial point
-  // of a step on the branch the step started on (else its error control rejects every step that
-  // straddles the jump and the step size collapses), then locate the sign change of
-  // SwitchFunction on the dense output and restart there on the other branch.
-  // Default: Force (laws without a discontinuity).
-  virtual double ForceOnBranch(std::span<const double> p, const ContactBody& body, double delta_m,
-                               double delta_dot_m_s, const double* state,
-                               bool positive_branch) const;
+  virtual int StateSize() const = 0;
 
-  // --- energy bookkeeping (J) ---------------------------------------------------------------
-  // Energy stored elastically at this overlap and state (recoverable part).
-  virtual double ElasticEnergy(std::span<const double> p, const ContactBody& body, double delta_m,
-                               const double* state) const = 0;
-  // Energy held in internal buffers (Jiang-Liu w_r); 0 for most laws.
-  virtual double InternalEnergy(std::span<const double> p, const ContactBody& body, double delta_m,
-                                const double* state) const;
+  // --- dynamics ------------------------------------------------------------------------------
+  // The law prepared for one parameter vector and body: its per-contact constants computed
+  // once (Hertz-Tsuji's eta = alpha(e) sqrt(m* k), Jiang-Liu's a and tau), the force, the state
+  // rate, the energies, and their derivatives for forward sensitivities. p must pass IsValid.
+  virtual std::unique_ptr<ContactDynamics> Dynamics(std::span<const double> p,
+                                                    const ContactBody& body) const = 0;
 
-  // --- closed forms, where they exist --------------------------------------------------------
+  // --- closed forms, where they exist (listed by ClosedForms(), a column of the row) ---------
   // Restitution e(v_in) and contact time for a contact starting at speed v_in (no gravity).
   virtual std::optional<double> Restitution(std::span<const double> p, const ContactBody& body,
                                             double v_in_m_s) const;
@@ -149,7 +121,7 @@ class ContactLaw {
                                    double v_in_m_s, double* e, double* de_dp) const;
   // Names of the closed forms this law provides ("restitution", "contact_time",
   // "solve_contact", "damping_for_restitution", "restitution_gradient"), for `bouncecal laws`.
-  virtual std::vector<std::string> ClosedForms() const { return {}; }
+  virtual std::vector<std::string> ClosedForms() const = 0;
 };
 
 }  // namespace bouncecal

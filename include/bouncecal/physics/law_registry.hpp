@@ -1,9 +1,10 @@
 // bouncecal/physics/law_registry.hpp — every contact law by name, from one table.
 //
-//   std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, body);  // throws Error(kBadParameter)
-//   for (const LawInfo& i : RegisteredLaws()) ...
+//   std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);  // throws Error(kBadParameter)
+//   for (const LawInfo& i : RegisteredLaws()) if (!i.needs_expression) ...
 //
-// The table itself (and the recipe for adding a law) is in src/physics/law_registry.cpp.
+// The table itself (and the recipe for adding a law) is in src/physics/law_registry.cpp. Ask
+// the row what a law can do (needs_expression, closed_forms, end_rule); never compare names.
 #pragma once
 
 #include <map>
@@ -16,13 +17,29 @@
 
 namespace bouncecal {
 
+// One row of the registry table: a law's identity and capabilities.
 struct LawInfo {
-  std::string name;
-  std::string summary;  // one line
+  std::string name;     // registry name, as typed in scene files and on the command line
+  std::string summary;  // one line for `bouncecal laws`
+  std::string formula;  // "F = k d + c d'"
+  std::string source;   // paper + equation
+  ContactEnd end_rule = ContactEnd::kOverlapZero;
+  // The law is defined by LawSpec::expression (and its parameters are the expression's names).
+  bool needs_expression = false;
+  // Closed forms the law provides: "restitution", "contact_time", "solve_contact",
+  // "damping_for_restitution", "restitution_gradient".
+  std::vector<std::string> closed_forms;
+
+  bool HasClosedForm(const std::string& form) const;
 };
 
 // Every registered law, in table order.
 std::vector<LawInfo> RegisteredLaws();
+// The row of a law by name; nullptr if unknown.
+const LawInfo* FindLaw(const std::string& name);
+// The law a force expression given without a law name selects (the first row that
+// needs_expression).
+std::string ExpressionLawName();
 
 // Creates a law from its registry name and parameters by name; parameters not given take the
 // law's defaults (some laws derive defaults from the body, e.g. Hertz stiffness from E* and

@@ -120,6 +120,17 @@ struct Scene {
   friend bool operator==(const Scene&, const Scene&) = default;
 };
 
+// The effective (contact) modulus E* of the ball on the surface, Pa (Hertz; Johnson, Contact
+// Mechanics, 1985, eq. 4.22): 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2, each body's E and nu its
+// explicit value or its material preset's. The one place E* is computed (Hertz stiffness
+// defaults, the Hertz contact duration). Rule for a body whose elastic constants are unknown
+// (a material without a preset and no explicit values) — the SURFACE included: nullopt, and
+// `why` names the keys and the material ("surface.youngs_modulus_pa/poisson_ratio: unknown for
+// material \"\""). An unknown surface is NOT taken as rigid: that would silently overstate E*
+// (steel on steel: twice the true value) and shorten every Hertz contact by 24 %. A rigid wall
+// is a surface with a very large youngs_modulus_pa.
+std::optional<double> EffectiveModulusPa(const Scene& scene, std::string* why);
+
 // Built-in material presets: density, Young's modulus, Poisson ratio.
 struct MaterialPreset {
   std::string name;

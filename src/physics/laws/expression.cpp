@@ -8,14 +8,19 @@
 // expression says (it may turn attractive). Elastic energy = the work of the rate-independent
 // part, integral_0^d F(x, 0) dx (16-point Gauss-Legendre in u = sqrt(x/d)). No closed forms.
 // Each law instance owns its parser (muParser is not thread-safe): one instance per thread,
-// as for every law (contact_law.hpp).
+// as for every law (contact_law.hpp); its dynamics share that parser.
+// muParser evaluates doubles only, so this is the one registered law whose force is not
+// templated on the scalar type: its dynamics are PointwiseDynamics (pointwise_law.hpp), whose
+// derivatives (forward sensitivities) are central differences of the expression.
 #include <muParser.h>
 
 #include <cmath>
 #include <limits>
 
 #include "bouncecal/core/error.hpp"
-#include "physics/laws/law_base.hpp"
+#include "bouncecal/physics/contact_dynamics.hpp"
+#include "bouncecal/physics/pointwise_law.hpp"
+#include "physics/laws/law_impl.hpp"
 
 namespace bouncecal::laws {
 namespace {
@@ -28,9 +33,14 @@ constexpr double kGaussW[8] = {0.1894506104550685, 0.1826034150449236, 0.1691565
                                0.1495959888165767, 0.1246289712555339, 0.0951585116824928,
                                0.0622535239386479, 0.0271524594117541};
 
-class ExpressionLaw final : public LawBase {
+}  // namespace
+
+class Expression final : public LawBase {
  public:
-  explicit ExpressionLaw(const LawSpec& spec) : expression_(spec.expression) {
+  static std::unique_ptr<LawBase> Create(const LawSpec& spec, const Scene&) {
+    return std::make_unique<Expression>(spec);
+  }
+  explicit Expression(const LawSpec& spec) : expression_(spec.expression) {
     if (expression_.empty()) {
       throw Error(ErrorCode::kBadParameter,
                   "law expression: no force expression given (set law.expression in the scene "
@@ -66,20 +76,19 @@ class ExpressionLaw final : public LawBase {
                                        : std::string()));
     }
   }
-  ExpressionLaw(const ExpressionLaw&) = delete;
-  ExpressionLaw& operator=(const ExpressionLaw&) = delete;
+  Expression(const Expression&) = delete;
+  Expression& operator=(const Expression&) = delete;
 
-  std::string Name() const override { return "expression"; }
   std::string Formula() const override { return "F = " + expression_; }
-  std::string Source() const override { return "user-defined (muParser expression)"; }
+  int StateSize() const override { return 0; }
+  std::unique_ptr<ContactDynamics> Dynamics(std::span<const double> p,
+                                            const ContactBody&) const override;
 
-  double Force(std::span<const double> p, const ContactBody&, double delta_m, double delta_dot_m_s,
-               const double*) const override {
+  double Force(std::span<const double> p, double delta_m, double delta_dot_m_s) const {
     if (delta_m <= 0.0) return 0.0;
     return Eval(p, delta_m, delta_dot_m_s);
   }
-  double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
-                       const double*) const override {
+  double ElasticEnergy(std::span<const double> p, double delta_m) const {
     if (delta_m <= 0.0) return 0.0;
     // x = d u^2 makes Hertz-type integrands (x^1.5 -> 2 d^2.5 u^4) polynomial in u.
     double sum = 0.0;
@@ -109,10 +118,14 @@ class ExpressionLaw final : public LawBase {
   mutable std::vector<double> vars_;
 };
 
-}  // namespace
-
-std::unique_ptr<LawBase> MakeExpression(const LawSpec& spec, const Scene&) {
-  return std::make_unique<ExpressionLaw>(spec);
+std::unique_ptr<ContactDynamics> Expression::Dynamics(std::span<const double> p,
+                                                      const ContactBody&) const {
+  // The parser at fixed p; derivatives by central differences (pointwise_law.hpp).
+  return std::make_unique<PointwiseDynamics>(
+      [this](std::span<const double> q, double d, double v) { return Force(q, d, v); },
+      [this](std::span<const double> q, double d) { return ElasticEnergy(q, d); }, EndRule(), p);
 }
+
+template std::unique_ptr<LawBase> MakeLaw<Expression>(const LawSpec&, const Scene&);
 
 }  // namespace bouncecal::laws

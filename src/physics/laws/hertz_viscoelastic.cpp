@@ -6,21 +6,16 @@
 // so e falls with v through b alone. Closed forms: the low-speed series of Schwager & Poschel
 // (2008), e = 1 - C1 b + C2 b^2 - ... (ViscoelasticSeriesRestitution, a test oracle); the
 // Padé form of Muller & Poschel (2011) is NOT implemented (not reproduced reliably here).
-// Restitution/ContactTime come from the exact master curves e(b), tau(b), computed once per
-// process by integrating the dimensionless equation (dopri5, rel. tol. 1e-12, bisection end)
-// on 1201 nodes of b in [0, 12] and Hermite-interpolated; beyond b = 12 (e < 3e-6) they
+// Restitution/ContactTime come from the exact master curves e(b), tau(b), whose nodes are
+// computed at build time (laws/master_curves.hpp: 1201 nodes of b in [0, 12], dopri5 at rel.
+// tol. 1e-12, ends by bisection) and Hermite-interpolated; beyond b = 12 (e < 3e-6) they
 // return nullopt. Contact ends at delta = 0 (the force turns slightly attractive before; kept).
-#include <cmath>
-
 #include "physics/laws/hertz_family.hpp"
-#include "physics/laws/law_base.hpp"
-#include "physics/laws/unit_contact.hpp"
+#include "physics/laws/law_impl.hpp"
+#include "physics/laws/master_curves.hpp"
 
 namespace bouncecal::laws {
 namespace {
-
-constexpr double kBMax = 12.0;
-constexpr int kNodes = 1201;
 
 struct ViscoCurves {
   HermiteTable e_of_b;
@@ -30,74 +25,71 @@ struct ViscoCurves {
 
 const ViscoCurves& Curves() {
   static const ViscoCurves curves = [] {
-    std::vector<double> b(kNodes), e(kNodes), de(kNodes), tau(kNodes), dtau(kNodes);
-    for (int i = 0; i < kNodes; ++i) {
-      // Nodes denser at small b where e changes fastest relative to its size.
-      const double u = static_cast<double>(i) / (kNodes - 1);
-      const double bb = kBMax * u * u;
-      auto run = [](double q) {
-        return IntegrateUnitContact(
-            [q](double x, double xd) {
-              x = std::max(x, 0.0);
-              return x * std::sqrt(x) + q * std::sqrt(x) * xd;
-            },
-            false, 1e-12, 1e4);
-      };
-      const double h = 1e-5 * std::max(bb, 0.01);
-      const UnitContact mid = run(bb), hi = run(bb + h), lo = run(std::max(bb - h, 0.0));
-      const double span = bb + h - std::max(bb - h, 0.0);
-      const size_t j = static_cast<size_t>(i);
-      b[j] = bb;
-      e[j] = mid.restitution;
-      de[j] = (hi.restitution - lo.restitution) / span;
-      tau[j] = mid.contact_time;
-      dtau[j] = (hi.contact_time - lo.contact_time) / span;
+    const MasterNodes& n = ViscoelasticNodes();
+    // e decreases with b: reverse the nodes for b(e), db/de = 1 / (de/db).
+    const size_t count = n.damping.size();
+    std::vector<double> e_inc(count), b_dec(count), db_de(count);
+    for (size_t j = 0; j < count; ++j) {
+      const size_t i = count - 1 - j;
+      e_inc[j] = n.restitution[i];
+      b_dec[j] = n.damping[i];
+      db_de[j] = 1.0 / n.restitution_slope[i];
     }
-    std::vector<double> e_inc(e.rbegin(), e.rend()), b_dec(b.rbegin(), b.rend()), db(kNodes);
-    for (size_t j = 0; j < static_cast<size_t>(kNodes); ++j) db[j] = 1.0 / de[kNodes - 1 - j];
-    return ViscoCurves{HermiteTable(b, e, de), HermiteTable(b, tau, dtau),
-                       HermiteTable(e_inc, b_dec, db)};
+    return ViscoCurves{HermiteTable(n.damping, n.restitution, n.restitution_slope),
+                       HermiteTable(n.damping, n.contact_time, n.contact_time_slope),
+                       HermiteTable(e_inc, b_dec, db_de)};
   }();
   return curves;
 }
 
-class HertzViscoelastic final : public LawBase {
+}  // namespace
+
+class HertzViscoelastic final : public LawImpl<HertzViscoelastic> {
  public:
-  HertzViscoelastic(double default_k, const std::string& k_note) {
-    specs_ = {
-        Spec("k", "N/m^1.5", "Hertz stiffness; default (4/3) E* sqrt(R*) from materials" + k_note,
-             kStiffnessLower, kStiffnessUpper, default_k, false),
+  static constexpr int kOverlapRoot = 2;  // delta^(1/2) damping, delta^(3/2) spring
+
+  static std::unique_ptr<LawBase> Create(const LawSpec&, const Scene& scene) {
+    auto law = std::make_unique<HertzViscoelastic>();
+    law->specs_ = {
+        HertzStiffnessSpec(scene, "N/m^1.5", "Hertz stiffness"),
         Spec("A", "s", "dissipative time constant (default 1e-7 s)", 0.0, 1.0, 1e-7, true),
     };
+    return law;
   }
-  std::string Name() const override { return "hertz-viscoelastic"; }
-  std::string Formula() const override { return "F = k (d^1.5 + 1.5 A d^0.5 d')"; }
-  std::string Source() const override {
-    return "Brilliantov et al., PRE 53 (1996) 5382; Schwager & Poschel, PRE 78 (2008) 051304";
+
+  template <class T>
+  struct Constants {
+    T k;
+    T damping;  // 1.5 k A
+  };
+  template <class T>
+  Constants<T> Prepare(const T* p, const ContactBody&) const {
+    return {p[0], 1.5 * p[0] * p[1]};
   }
-  double Force(std::span<const double> p, const ContactBody&, double delta_m, double delta_dot_m_s,
-               const double*) const override {
-    if (delta_m <= 0.0) return 0.0;
-    const double root = std::sqrt(delta_m);
-    return p[0] * (delta_m * root + 1.5 * p[1] * root * delta_dot_m_s);
+  template <class T>
+  T Force(const Constants<T>& c, const T& delta, const T& rate, const T*, bool) const {
+    using std::sqrt;
+    if (!(delta > 0.0)) return T(0.0);
+    const T root = sqrt(delta);
+    return c.k * delta * root + c.damping * root * rate;
   }
-  double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
-                       const double*) const override {
-    return delta_m > 0.0 ? 0.4 * p[0] * delta_m * delta_m * std::sqrt(delta_m) : 0.0;
+  double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
+    return delta_m > 0.0 ? 0.4 * c.k * delta_m * delta_m * std::sqrt(delta_m) : 0.0;
   }
+
   static double B(std::span<const double> p, const ContactBody& body, double v) {
     return 1.5 * p[1] * std::pow(p[0] / body.mass_kg, 0.4) * std::pow(v, 0.2);
   }
   std::optional<double> Restitution(std::span<const double> p, const ContactBody& body,
                                     double v_in_m_s) const override {
     const double b = B(p, body, v_in_m_s);
-    if (!(b <= kBMax)) return std::nullopt;
+    if (!(b <= kViscoelasticBMax)) return std::nullopt;
     return Curves().e_of_b(b);
   }
   std::optional<double> ContactTime(std::span<const double> p, const ContactBody& body,
                                     double v_in_m_s) const override {
     const double b = B(p, body, v_in_m_s);
-    if (!(b <= kBMax)) return std::nullopt;
+    if (!(b <= kViscoelasticBMax)) return std::nullopt;
     return Curves().tau_of_b(b) * std::pow(body.mass_kg / p[0], 0.4) * std::pow(v_in_m_s, -0.2);
   }
   std::optional<std::vector<double>> DampingForRestitution(std::span<const double> p,
@@ -113,7 +105,7 @@ class HertzViscoelastic final : public LawBase {
   bool RestitutionGradient(std::span<const double> p, const ContactBody& body, double v_in_m_s,
                            double* e, double* de_dp) const override {
     const double b = B(p, body, v_in_m_s);
-    if (!(b <= kBMax)) return false;
+    if (!(b <= kViscoelasticBMax)) return false;
     const double slope = Curves().e_of_b.Derivative(b);  // de/db
     if (e) *e = Curves().e_of_b(b);
     if (de_dp) {
@@ -122,22 +114,13 @@ class HertzViscoelastic final : public LawBase {
     }
     return true;
   }
-  std::vector<std::string> ClosedForms() const override {
-    return {kClosedRestitution, kClosedContactTime, kClosedInverse, kClosedGradient};
-  }
 };
-
-}  // namespace
 
 double ViscoelasticRestitution(double b) { return Curves().e_of_b(b); }
 double ViscoelasticSeriesRestitution(double b) {
   return 1.0 - kSchwagerPoschelC1 * b + kSchwagerPoschelC2 * b * b;  // S&P 2008, 2 terms
 }
 
-std::unique_ptr<LawBase> MakeHertzViscoelastic(const LawSpec&, const Scene& scene) {
-  std::string why;
-  const std::optional<double> k = HertzStiffnessFromScene(scene, &why);
-  return std::make_unique<HertzViscoelastic>(k.value_or(kNaN), k ? "" : "; " + why);
-}
+template std::unique_ptr<LawBase> MakeLaw<HertzViscoelastic>(const LawSpec&, const Scene&);
 
 }  // namespace bouncecal::laws

@@ -13,12 +13,13 @@
 //      end at F = 0: t_c = 2 ln(r2/r1)/(r1 - r2), e = exp(r1 t_c) r1/r2
 //        (critical: omega t_c = 2, e = exp(-2)).
 // Inverse (delta = 0 rule): zeta = -ln e / sqrt(pi^2 + ln^2 e), c = 2 zeta sqrt(m* k).
-// Registered twice: "linear-dashpot" (delta = 0 end) and "linear-dashpot-force-zero".
+// Registered twice, with one class: "linear-dashpot" (delta = 0 end) and
+// "linear-dashpot-force-zero"; the end rule is a column of the row (EndRule()).
 #include <ceres/jet.h>
 
 #include <cmath>
 
-#include "physics/laws/law_base.hpp"
+#include "physics/laws/law_impl.hpp"
 
 namespace bouncecal::laws {
 namespace {
@@ -60,60 +61,66 @@ LinearEnd<T> SolveLinearEnd(const T& k, const T& c, double m, bool force_zero) {
   return {exp(r1 * t) * r1 / r2, t, false};
 }
 
-class LinearDashpot final : public LawBase {
+}  // namespace
+
+class LinearDashpot final : public LawImpl<LinearDashpot> {
  public:
-  LinearDashpot(bool force_zero, double mass_kg, double k_n_m) : force_zero_(force_zero) {
+  static std::unique_ptr<LawBase> Create(const LawSpec& spec, const Scene& scene) {
     // Default c: e = 0.8 under the overlap-zero rule for the scene's ball and the k in use.
+    const auto given_k = spec.parameters.find("k");
     const double kDefaultK = 1e7;
+    const double k_n_m = given_k == spec.parameters.end() ? kDefaultK : given_k->second;
+    const double mass_kg = scene.ball.Mass();
     const double ln_e = std::log(0.8);
     const double zeta = -ln_e / std::sqrt(kPi * kPi + ln_e * ln_e);
     const double c_default =
         mass_kg > 0.0 && std::isfinite(mass_kg) && k_n_m > 0.0 && std::isfinite(k_n_m)
             ? 2.0 * zeta * std::sqrt(mass_kg * k_n_m)
             : 0.0;
-    specs_ = {
+    auto law = std::make_unique<LinearDashpot>();
+    law->specs_ = {
         Spec("k", "N/m", "spring stiffness (default 1e7 N/m, seed 002 k_n)", kStiffnessLower,
              kStiffnessUpper, kDefaultK, false),
         Spec("c", "N*s/m",
              "dashpot coefficient (default: e = 0.8 for the scene's ball, overlap-zero rule)", 0.0,
              1e12, c_default, true),
     };
+    return law;
   }
 
-  std::string Name() const override {
-    return force_zero_ ? "linear-dashpot-force-zero" : "linear-dashpot";
+  template <class T>
+  struct Constants {
+    T k, c;
+  };
+  template <class T>
+  Constants<T> Prepare(const T* p, const ContactBody&) const {
+    return {p[0], p[1]};
   }
-  std::string Formula() const override { return "F = k d + c d'"; }
-  std::string Source() const override {
-    return "Cundall & Strack 1979; closed form: damped oscillator (PHYSICS.md §3)";
+  // k d + c d' for every d: smooth through d = 0 (past the end the integrator continues it).
+  static constexpr bool kContinuesBelowZero = true;
+  template <class T>
+  T Force(const Constants<T>& cs, const T& delta, const T& rate, const T*, bool) const {
+    return cs.k * delta + cs.c * rate;
   }
-  ContactEnd EndRule() const override {
-    return force_zero_ ? ContactEnd::kForceZero : ContactEnd::kOverlapZero;
+  double ElasticEnergy(const Constants<double>& cs, double delta_m, const double*) const {
+    return delta_m > 0.0 ? 0.5 * cs.k * delta_m * delta_m : 0.0;
   }
-
-  double Force(std::span<const double> p, const ContactBody&, double delta_m, double delta_dot_m_s,
-               const double*) const override {
-    if (delta_m < 0.0) return 0.0;
-    return p[0] * delta_m + p[1] * delta_dot_m_s;
-  }
-  double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
-                       const double*) const override {
-    return delta_m > 0.0 ? 0.5 * p[0] * delta_m * delta_m : 0.0;
-  }
+  // The row's end rule (the two rows of this class differ only there).
+  bool ForceZero() const { return EndRule() == ContactEnd::kForceZero; }
 
   std::optional<double> Restitution(std::span<const double> p, const ContactBody& body,
                                     double) const override {
-    return SolveLinearEnd<double>(p[0], p[1], body.mass_kg, force_zero_).restitution;
+    return SolveLinearEnd<double>(p[0], p[1], body.mass_kg, ForceZero()).restitution;
   }
   std::optional<double> ContactTime(std::span<const double> p, const ContactBody& body,
                                     double) const override {
-    return SolveLinearEnd<double>(p[0], p[1], body.mass_kg, force_zero_).time_s;
+    return SolveLinearEnd<double>(p[0], p[1], body.mass_kg, ForceZero()).time_s;
   }
 
   std::optional<ContactOutcome> SolveContact(std::span<const double> p, const ContactBody& body,
                                              double v_in_m_s) const override {
     const double k = p[0], c = p[1], m = body.mass_kg, v = v_in_m_s;
-    const LinearEnd<double> end = SolveLinearEnd<double>(k, c, m, force_zero_);
+    const LinearEnd<double> end = SolveLinearEnd<double>(k, c, m, ForceZero());
     ContactOutcome out;
     out.restitution = end.restitution;
     out.contact_time_s = end.time_s;
@@ -138,10 +145,10 @@ class LinearDashpot final : public LawBase {
             ((wd * wd - sigma * sigma) * std::sin(theta) + 2.0 * sigma * wd * std::cos(theta));
         out.peak_force_n = std::max(out.peak_force_n, f);
       }
-      out.end_overlap_m = force_zero_ ? overlap(end.time_s * wd) : 0.0;
+      out.end_overlap_m = ForceZero() ? overlap(end.time_s * wd) : 0.0;
     } else if (zeta == 1.0) {
       out.peak_overlap_m = v / (omega * std::exp(1.0));
-      out.end_overlap_m = force_zero_ ? v * end.time_s * std::exp(-omega * end.time_s) : 0.0;
+      out.end_overlap_m = ForceZero() ? v * end.time_s * std::exp(-omega * end.time_s) : 0.0;
     } else {
       const double root = omega * std::sqrt(zeta * zeta - 1.0);
       const double r1 = -sigma + root, r2 = -sigma - root;
@@ -149,7 +156,7 @@ class LinearDashpot final : public LawBase {
         return v / (r1 - r2) * (std::exp(r1 * t) - std::exp(r2 * t));
       };
       out.peak_overlap_m = overlap(std::log(r2 / r1) / (r1 - r2));
-      out.end_overlap_m = force_zero_ ? overlap(end.time_s) : 0.0;
+      out.end_overlap_m = ForceZero() ? overlap(end.time_s) : 0.0;
     }
     if (end.stuck) out.end_overlap_m = 0.0;  // approached asymptotically
     return out;
@@ -161,7 +168,7 @@ class LinearDashpot final : public LawBase {
     if (!(e > 0.0 && e <= 1.0)) return std::nullopt;
     std::vector<double> q(p.begin(), p.end());
     const double crit = 2.0 * std::sqrt(body.mass_kg * p[0]);  // c at zeta = 1
-    if (!force_zero_) {
+    if (!ForceZero()) {
       const double ln_e = std::log(e);
       q[1] = -ln_e / std::sqrt(kPi * kPi + ln_e * ln_e) * crit;
       return q;
@@ -189,7 +196,7 @@ class LinearDashpot final : public LawBase {
                            double* de_dp) const override {
     using Jet = ceres::Jet<double, 2>;
     const LinearEnd<Jet> end =
-        SolveLinearEnd<Jet>(Jet(p[0], 0), Jet(p[1], 1), body.mass_kg, force_zero_);
+        SolveLinearEnd<Jet>(Jet(p[0], 0), Jet(p[1], 1), body.mass_kg, ForceZero());
     if (e) *e = end.restitution.a;
     if (de_dp) {
       de_dp[0] = end.restitution.v[0];
@@ -197,30 +204,8 @@ class LinearDashpot final : public LawBase {
     }
     return true;
   }
-
-  std::vector<std::string> ClosedForms() const override {
-    return {kClosedRestitution, kClosedContactTime, kClosedSolveContact, kClosedInverse,
-            kClosedGradient};
-  }
-
- private:
-  bool force_zero_;
 };
 
-}  // namespace
-
-namespace {
-double GivenK(const LawSpec& spec) {
-  const auto it = spec.parameters.find("k");
-  return it == spec.parameters.end() ? 1e7 : it->second;
-}
-}  // namespace
-
-std::unique_ptr<LawBase> MakeLinearDashpot(const LawSpec& spec, const Scene& scene) {
-  return std::make_unique<LinearDashpot>(false, scene.ball.Mass(), GivenK(spec));
-}
-std::unique_ptr<LawBase> MakeLinearDashpotForceZero(const LawSpec& spec, const Scene& scene) {
-  return std::make_unique<LinearDashpot>(true, scene.ball.Mass(), GivenK(spec));
-}
+template std::unique_ptr<LawBase> MakeLaw<LinearDashpot>(const LawSpec&, const Scene&);
 
 }  // namespace bouncecal::laws

@@ -6,53 +6,51 @@
 //   e^2 = (1 - gamma)/(1 + gamma), eta = 1 - e^2 = 2 gamma/(1 + gamma)     (seed 002 eq. 23)
 //   t_c = (pi/2) (1/omega_load + 1/omega_unload)
 //   inverse: gamma = (1 - e^2)/(1 + e^2) (= eta/(2 - eta)).
-// The force jumps at delta' = 0 (the branch switch): SwitchFunction = delta' so the integrator
-// stops its step there, and ForceOnBranch continues each branch past it (see contact_law.hpp).
+// The force jumps at delta' = 0 (the branch switch): Switch = delta' so the integrator
+// stops its step there, and Force on a branch continues it past the switch (contact_dynamics.hpp).
 // Contact ends at delta = 0 (the unloading force is never attractive).
 #include <cmath>
 
-#include "physics/laws/law_base.hpp"
+#include "physics/laws/law_impl.hpp"
 
 namespace bouncecal::laws {
-namespace {
 
-class WaltonBraun final : public LawBase {
+class WaltonBraun final : public LawImpl<WaltonBraun> {
  public:
-  WaltonBraun() {
-    specs_ = {
+  static constexpr bool kHasSwitch = true;
+
+  static std::unique_ptr<LawBase> Create(const LawSpec&, const Scene&) {
+    auto law = std::make_unique<WaltonBraun>();
+    law->specs_ = {
         Spec("k", "N/m", "base stiffness (default 1e7 N/m, seed 002 k_n)", kStiffnessLower,
              kStiffnessUpper, 1e7, false),
         Spec("gamma", "1", "loading/unloading asymmetry, < 1 (default 0.5, seed 002's choice)", 0.0,
              0.9999, 0.5, true),
     };
-  }
-  std::string Name() const override { return "walton-braun"; }
-  std::string Formula() const override {
-    return "F = (1 + gamma) k d if d' > 0, (1 - gamma) k d otherwise";
-  }
-  std::string Source() const override {
-    return "Zhong et al., Acta Phys. Sin. 58 (2009), eqs. 3-4 and 23 (seed 002)";
+    return law;
   }
 
-  double Force(std::span<const double> p, const ContactBody&, double delta_m, double delta_dot_m_s,
-               const double*) const override {
-    if (delta_m < 0.0) return 0.0;
-    const double factor = delta_dot_m_s > 0.0 ? 1.0 + p[1] : 1.0 - p[1];
-    return factor * p[0] * delta_m;
+  template <class T>
+  struct Constants {
+    T load, unload;  // (1 + gamma) k and (1 - gamma) k
+  };
+  template <class T>
+  Constants<T> Prepare(const T* p, const ContactBody&) const {
+    return {(1.0 + p[1]) * p[0], (1.0 - p[1]) * p[0]};
   }
-  double ForceOnBranch(std::span<const double> p, const ContactBody&, double delta_m, double,
-                       const double*, bool loading) const override {
-    if (delta_m < 0.0) return 0.0;
-    return (loading ? 1.0 + p[1] : 1.0 - p[1]) * p[0] * delta_m;
+  // The branch continued past the switch (contact_dynamics.hpp): loading = true.
+  static constexpr bool kContinuesBelowZero = true;  // linear in d on each branch
+  template <class T>
+  T Force(const Constants<T>& c, const T& delta, const T&, const T*, bool loading) const {
+    return (loading ? c.load : c.unload) * delta;
   }
-  double SwitchFunction(std::span<const double>, const ContactBody&, double, double delta_dot_m_s,
-                        const double*) const override {
-    return delta_dot_m_s;
+  template <class T, class C>
+  T Switch(const C&, const T&, const T& rate, const T*) const {
+    return rate;
   }
   // Recoverable energy: what the unloading branch gives back.
-  double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
-                       const double*) const override {
-    return delta_m > 0.0 ? 0.5 * (1.0 - p[1]) * p[0] * delta_m * delta_m : 0.0;
+  double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
+    return delta_m > 0.0 ? 0.5 * c.unload * delta_m * delta_m : 0.0;
   }
 
   std::optional<double> Restitution(std::span<const double> p, const ContactBody&,
@@ -93,16 +91,8 @@ class WaltonBraun final : public LawBase {
     }
     return true;
   }
-  std::vector<std::string> ClosedForms() const override {
-    return {kClosedRestitution, kClosedContactTime, kClosedSolveContact, kClosedInverse,
-            kClosedGradient};
-  }
 };
 
-}  // namespace
-
-std::unique_ptr<LawBase> MakeWaltonBraun(const LawSpec&, const Scene&) {
-  return std::make_unique<WaltonBraun>();
-}
+template std::unique_ptr<LawBase> MakeLaw<WaltonBraun>(const LawSpec&, const Scene&);
 
 }  // namespace bouncecal::laws

@@ -2,35 +2,39 @@
 //   loading (delta at its running maximum delta_max): F = k1 delta
 //   unloading / reloading below delta_max:            F = k2 (delta - delta0),
 //   delta0 = delta_max (1 - k1/k2)  (the unloading line meets the loading line at delta_max).
-// Written as one continuous expression, F = max(0, min(k1 delta, k2 (delta - delta0))), with
-// the internal state delta_max (d delta_max/dt = delta' while delta >= delta_max and delta' > 0).
+// Written as one continuous expression, F = min(k1 delta, k2 (delta - delta0)) (>= 0 until the
+// contact ends at F = 0), with
+// delta0 from the law's memory delta_max = max(state, delta): the state records the peak
+// overlap at each located switch from loading to unloading (delta' = 0; AtSwitch), and needs no
+// differential equation. (Integrating d delta_max/dt = delta' while delta >= delta_max made the
+// rate chatter between delta' and 0 as the integrated delta_max crossed delta, and cost the
+// integrator its accuracy: e errors of 1e-5 at rtol 1e-9 before.) While loading,
+// max(state, delta) = delta, so the force is k1 delta; on reloading below an earlier peak the
+// unloading line holds until delta passes it.
 // The contact ends when the unloading force reaches 0, i.e. at delta = delta0 > 0 (kForceZero:
 // the plastic overlap delta0 is left behind). Closed forms (k2 constant, not LIGGGHTS' growing
 // k2): e^2 = k1/k2, t_c = (pi/2)(sqrt(m*/k1) + sqrt(m*/k2)), inverse k2 = k1/e^2.
 #include <algorithm>
 #include <cmath>
 
-#include "physics/laws/law_base.hpp"
+#include "physics/laws/law_impl.hpp"
 
 namespace bouncecal::laws {
-namespace {
 
-class WaltonBraunHysteretic final : public LawBase {
+class WaltonBraunHysteretic final : public LawImpl<WaltonBraunHysteretic> {
  public:
-  WaltonBraunHysteretic() {
-    specs_ = {
+  static constexpr int kStateSize = 1;  // delta_max, the running maximum overlap
+  static constexpr bool kHasSwitch = true;
+
+  static std::unique_ptr<LawBase> Create(const LawSpec&, const Scene&) {
+    auto law = std::make_unique<WaltonBraunHysteretic>();
+    law->specs_ = {
         Spec("k1", "N/m", "loading stiffness (default 1e7 N/m)", kStiffnessLower, kStiffnessUpper,
              1e7, false),
         Spec("k2", "N/m", "unloading stiffness, >= k1 (default 1e7/0.64: e = 0.8)", kStiffnessLower,
              kStiffnessUpper, 1e7 / 0.64, true),
     };
-  }
-  std::string Name() const override { return "walton-braun-hysteretic"; }
-  std::string Formula() const override {
-    return "F = k1 d loading, k2 (d - d0) unloading, d0 = dmax (1 - k1/k2)";
-  }
-  std::string Source() const override {
-    return "Walton & Braun, J. Rheol. 30 (1986) 949; e^2 = k1/k2 (PHYSICS.md §3)";
+    return law;
   }
   bool IsValid(std::span<const double> p, const ContactBody& body,
                std::string* error) const override {
@@ -44,31 +48,43 @@ class WaltonBraunHysteretic final : public LawBase {
     }
     return true;
   }
-  ContactEnd EndRule() const override { return ContactEnd::kForceZero; }
-  int StateSize() const override { return 1; }
-  void InitialState(std::span<const double>, const ContactBody&, double,
-                    double* state) const override {
-    state[0] = 0.0;
+
+  template <class T>
+  struct Constants {
+    T k1, k2;
+    T plastic;  // 1 - k1/k2: delta0 = delta_max (1 - k1/k2)
+  };
+  template <class T>
+  Constants<T> Prepare(const T* p, const ContactBody&) const {
+    return {p[0], p[1], 1.0 - Quotient(p[0], p[1])};
   }
-  void StateRate(std::span<const double>, const ContactBody&, double delta_m, double delta_dot_m_s,
-                 const double* state, double* rate) const override {
-    rate[0] = (delta_dot_m_s > 0.0 && delta_m >= state[0]) ? delta_dot_m_s : 0.0;
+  static constexpr bool kContinuesBelowZero = true;  // two lines in d
+  template <class T>
+  T Force(const Constants<T>& c, const T& delta, const T&, const T* state, bool) const {
+    const T delta_max = state[0] > delta ? state[0] : delta;
+    const T loading = c.k1 * delta;
+    const T unloading = c.k2 * (delta - delta_max * c.plastic);
+    // min(loading, unloading); not clipped at 0: the contact ends where the unloading line
+    // reaches F = 0 (kForceZero), so within the contact F >= 0, and past the end the line is
+    // the force's smooth continuation (the integrator's last step stays smooth).
+    return loading < unloading ? loading : unloading;
   }
-  double SwitchFunction(std::span<const double>, const ContactBody&, double, double delta_dot_m_s,
-                        const double*) const override {
-    return delta_dot_m_s;
+  template <class T, class C>
+  void StateRate(const C&, const T&, const T&, const T*, T* out) const {
+    out[0] = T(0.0);  // the memory changes only at switches (AtSwitch)
   }
-  double Force(std::span<const double> p, const ContactBody&, double delta_m, double,
-               const double* state) const override {
-    if (delta_m <= 0.0) return 0.0;
-    const double delta0 = PlasticOverlap(p, delta_m, state);
-    return std::max(0.0, std::min(p[0] * delta_m, p[1] * (delta_m - delta0)));
+  template <class T, class C>
+  void AtSwitch(const C&, const T& delta, T* state) const {
+    if (delta > state[0]) state[0] = delta;  // a peak: loading turns to unloading
   }
-  double ElasticEnergy(std::span<const double> p, const ContactBody&, double delta_m,
-                       const double* state) const override {
-    const double delta0 = PlasticOverlap(p, delta_m, state);
-    const double x = delta_m - delta0;
-    return x > 0.0 ? 0.5 * p[1] * x * x : 0.0;
+  template <class T, class C>
+  T Switch(const C&, const T&, const T& rate, const T*) const {
+    return rate;
+  }
+  double ElasticEnergy(const Constants<double>& c, double delta_m, const double* state) const {
+    const double delta_max = std::max(state[0], delta_m);
+    const double x = delta_m - delta_max * c.plastic;
+    return x > 0.0 ? 0.5 * c.k2 * x * x : 0.0;
   }
 
   std::optional<double> Restitution(std::span<const double> p, const ContactBody&,
@@ -107,22 +123,8 @@ class WaltonBraunHysteretic final : public LawBase {
     }
     return true;
   }
-  std::vector<std::string> ClosedForms() const override {
-    return {kClosedRestitution, kClosedContactTime, kClosedSolveContact, kClosedInverse,
-            kClosedGradient};
-  }
-
- private:
-  static double PlasticOverlap(std::span<const double> p, double delta_m, const double* state) {
-    const double delta_max = std::max(state[0], delta_m);
-    return delta_max * (1.0 - p[0] / p[1]);
-  }
 };
 
-}  // namespace
-
-std::unique_ptr<LawBase> MakeWaltonBraunHysteretic(const LawSpec&, const Scene&) {
-  return std::make_unique<WaltonBraunHysteretic>();
-}
+template std::unique_ptr<LawBase> MakeLaw<WaltonBraunHysteretic>(const LawSpec&, const Scene&);
 
 }  // namespace bouncecal::laws

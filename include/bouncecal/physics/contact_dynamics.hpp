@@ -1,0 +1,90 @@
+// bouncecal/physics/contact_dynamics.hpp — a contact law prepared for one parameter vector and
+// body: what the contact integrator evaluates, in double and in forward-sensitivity arithmetic.
+//
+//   std::unique_ptr<ContactDynamics> dyn = law->Dynamics(p, body);   // constants prepared once
+//   double f = dyn->Force(delta_m, delta_dot_m_s, state);            // N, on its branch
+//
+// Every built-in law writes its force and state rate once, as functions templated on the
+// scalar type (src/physics/laws/law_base.hpp); the same code runs in double and in
+// SensitivityJet, a ceres::Jet whose derivative slots are the directions of forward
+// sensitivities: slot j < P is the law's parameter p_j (the prepared constants carry their
+// p-derivatives), the remaining slots are free for the caller (the integrator uses slot P for
+// the impact speed). The user expression law (muParser, double only) differences itself.
+//
+// Conventions: delta >= 0 (the integrator clamps it unless ContinuesBelowZero), rate =
+// delta_dot (> 0 loading); "branch"
+// selects the side of the law's switch (Walton-Braun: loading = true) so that every trial point
+// of an integrator step stays on the branch the step started on (the integrator locates sign
+// changes of Switch and restarts on the other branch). Laws without a switch ignore it.
+#pragma once
+
+#include <ceres/jet.h>
+
+#include "bouncecal/physics/contact_law.hpp"
+
+namespace bouncecal {
+
+// Directions of forward sensitivities: the law's parameters (at most
+// kMaxSensitivityParameters) and the contact's impact speed.
+inline constexpr int kSensitivityDirections = 8;
+inline constexpr int kMaxSensitivityParameters = kSensitivityDirections - 1;
+using SensitivityJet = ceres::Jet<double, kSensitivityDirections>;
+
+class ContactDynamics {
+ public:
+  virtual ~ContactDynamics() = default;
+
+  virtual int StateSize() const = 0;
+  virtual int ParameterCount() const = 0;
+  virtual ContactEnd EndRule() const = 0;
+  // The force is a smooth function of delta^(1/q) and delta' near delta = 0 (q = 4 for Tsuji's
+  // delta^(1/4), 2 for Hertz's delta^(3/2), 1 for laws smooth in delta). The integrator takes
+  // u = delta^(1/q) as its independent variable where the overlap is small.
+  virtual int OverlapRoot() const { return 1; }
+  // The force formula continues smoothly to delta < 0 (laws linear in delta): the integrator
+  // then passes the overlap through unclamped past the end of the contact, so the step that
+  // crosses the end sees no kink. Otherwise it passes max(delta, 0) (F(0, delta') beyond).
+  virtual bool ContinuesBelowZero() const { return false; }
+  virtual bool HasSwitch() const { return false; }
+  // Internal state at first touch; independent of p and of the impact speed (sensitivities
+  // assume so). Default: zeros.
+  virtual void InitialState(double* state) const;
+  // Size of state variable i for error control, given the contact's length scale (m) and
+  // energy scale (J): the integrator controls errors of state[i] / scale.
+  virtual double StateScale(int i, double length_m, double energy_j) const;
+
+  // Normal force on the ball (N, positive = repulsive) on the given branch.
+  virtual double ForceOnBranch(double delta_m, double delta_dot_m_s, const double* state,
+                               bool branch) const = 0;
+  virtual SensitivityJet ForceOnBranch(const SensitivityJet& delta_m,
+                                       const SensitivityJet& delta_dot_m_s,
+                                       const SensitivityJet* state, bool branch) const = 0;
+  // d(state)/dt; laws without state need not override.
+  virtual void StateRate(double delta_m, double delta_dot_m_s, const double* state,
+                         double* rate) const;
+  virtual void StateRate(const SensitivityJet& delta_m, const SensitivityJet& delta_dot_m_s,
+                         const SensitivityJet* state, SensitivityJet* rate) const;
+  // Laws whose force switches discontinuously report the switch as the sign change of this
+  // function (Walton-Braun: delta'). Default +1 (no switch).
+  virtual double Switch(double delta_m, double delta_dot_m_s, const double* state) const;
+  virtual SensitivityJet Switch(const SensitivityJet& delta_m, const SensitivityJet& delta_dot_m_s,
+                                const SensitivityJet* state) const;
+
+  // The law's memory update at a located switch (Walton-Braun hysteresis: the peak overlap is
+  // recorded when loading turns to unloading); the state may jump there. Default: none.
+  virtual void AtSwitch(double delta_m, double* state) const;
+  virtual void AtSwitch(const SensitivityJet& delta_m, SensitivityJet* state) const;
+
+  // Energy stored elastically at this overlap and state (recoverable part), J.
+  virtual double ElasticEnergy(double delta_m, const double* state) const = 0;
+  // Energy held in internal buffers (Jiang-Liu w_r), J; 0 for most laws.
+  virtual double InternalEnergy(const double* state) const;
+
+  // The force on the branch the state is on.
+  double Force(double delta_m, double delta_dot_m_s, const double* state) const {
+    return ForceOnBranch(delta_m, delta_dot_m_s, state,
+                         Switch(delta_m, delta_dot_m_s, state) > 0.0);
+  }
+};
+
+}  // namespace bouncecal

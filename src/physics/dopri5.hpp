@@ -1,0 +1,200 @@
+// physics/dopri5.hpp — the Dormand-Prince 5(4) Runge-Kutta pair with its continuous extension
+// and a PI step-size controller, for the contact integrator (internal header).
+//
+// Tableau: Dormand & Prince, J. Comput. Appl. Math. 6 (1980) 19; continuous extension of order
+// 4 and the PI controller (beta = 0.04, safety 0.9, step ratio in [0.2, 10]) as in Hairer,
+// Norsett & Wanner, Solving ODEs I, 2nd ed. (1993), §II.5 (Table 5.2), §II.6 (eq. 6.12) and
+// §IV.2 (eq. 2.43c). Written here rather than taken from Boost.Odeint because the contact
+// integrator needs what odeint's controlled stepper does not offer: states in forward-
+// sensitivity arithmetic (ceres::Jet) whose error control uses the values only, a
+// mixed absolute/relative norm, and a PI controller (fewer rejected steps than odeint's
+// I controller). Boost.Odeint stays the independent reference (tests/law_oracle.hpp); the
+// tableau is checked against it and for its order in tests/contact_integrator_test.cpp.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include "physics/scalar.hpp"
+
+namespace bouncecal::dopri5 {
+
+using scalar::Value;
+template <class T>
+double ValueOf(const T& x) {
+  return Value(x);
+}
+
+// Butcher tableau (HNW Table II.5.2) and the error weights e_i = b_i - b^_i.
+inline constexpr double kC2 = 1.0 / 5, kC3 = 3.0 / 10, kC4 = 4.0 / 5, kC5 = 8.0 / 9;
+inline constexpr double kA21 = 1.0 / 5;
+inline constexpr double kA31 = 3.0 / 40, kA32 = 9.0 / 40;
+inline constexpr double kA41 = 44.0 / 45, kA42 = -56.0 / 15, kA43 = 32.0 / 9;
+inline constexpr double kA51 = 19372.0 / 6561, kA52 = -25360.0 / 2187, kA53 = 64448.0 / 6561,
+                        kA54 = -212.0 / 729;
+inline constexpr double kA61 = 9017.0 / 3168, kA62 = -355.0 / 33, kA63 = 46732.0 / 5247,
+                        kA64 = 49.0 / 176, kA65 = -5103.0 / 18656;
+inline constexpr double kB1 = 35.0 / 384, kB3 = 500.0 / 1113, kB4 = 125.0 / 192,
+                        kB5 = -2187.0 / 6784, kB6 = 11.0 / 84;
+inline constexpr double kE1 = 71.0 / 57600, kE3 = -71.0 / 16695, kE4 = 71.0 / 1920,
+                        kE5 = -17253.0 / 339200, kE6 = 22.0 / 525, kE7 = -1.0 / 40;
+// Continuous extension (HNW §II.6, dense output of DOPRI5).
+inline constexpr double kD1 = -12715105075.0 / 11282082432, kD3 = 87487479700.0 / 32700410799,
+                        kD4 = -10690763975.0 / 1880347072, kD5 = 701980252875.0 / 199316789632,
+                        kD6 = -1453857185.0 / 822651844, kD7 = 69997945.0 / 29380423;
+
+// out = x + h (c_1 k_1 + ... + c_M k_M), component by component, in one pass: for a ceres::Jet
+// the value and the derivative parts are summed separately over raw arrays (Jet operators would
+// create and copy a temporary per operation: 40 % of a sensitivity run before this).
+template <size_t M>
+inline void Combine(double& out, const double& x, double h, const std::array<double, M>& c,
+                    const std::array<const double*, M>& k) {
+  double sum = 0.0;
+  for (size_t m = 0; m < M; ++m) sum += c[m] * *k[m];
+  out = x + h * sum;
+}
+template <size_t M, class J>
+inline void Combine(J& out, const J& x, double h, const std::array<double, M>& c,
+                    const std::array<const J*, M>& k) {
+  double sum = 0.0;
+  for (size_t m = 0; m < M; ++m) sum += c[m] * k[m]->a;
+  constexpr int kN = static_cast<int>(decltype(x.v)::RowsAtCompileTime);
+  double v[kN];
+  const double* xv = x.v.data();
+  for (int j = 0; j < kN; ++j) v[j] = xv[j];
+  for (size_t m = 0; m < M; ++m) {
+    const double s = h * c[m];
+    const double* kv = k[m]->v.data();
+    for (int j = 0; j < kN; ++j) v[j] += s * kv[j];
+  }
+  out.a = x.a + h * sum;
+  double* ov = out.v.data();
+  for (int j = 0; j < kN; ++j) ov[j] = v[j];
+}
+
+// One integrator: the stages of the last step are kept for its dense output.
+// Sys: void operator()(const State& x, State& dxdt, double t) const.
+template <class T, size_t N>
+class Stepper {
+ public:
+  using State = std::array<T, N>;
+
+  // One step of size h from (t, x) with f = rhs(x, t): x1 = x(t + h), f1 = rhs(x1, t + h)
+  // (first same as last), err = the value part of the embedded error estimate. Only the first
+  // n components are computed (the rest of x1, f1 are copied as zero).
+  template <class Sys>
+  void Step(const Sys& sys, const State& x, const State& f, double t, double h, State& x1,
+            State& f1, std::array<double, N>& err, size_t n) {
+    State tmp{};
+    for (size_t i = 0; i < n; ++i) Combine<1>(tmp[i], x[i], h, {kA21}, {&f[i]});
+    sys(tmp, k2_, t + kC2 * h);
+    for (size_t i = 0; i < n; ++i) Combine<2>(tmp[i], x[i], h, {kA31, kA32}, {&f[i], &k2_[i]});
+    sys(tmp, k3_, t + kC3 * h);
+    for (size_t i = 0; i < n; ++i) {
+      Combine<3>(tmp[i], x[i], h, {kA41, kA42, kA43}, {&f[i], &k2_[i], &k3_[i]});
+    }
+    sys(tmp, k4_, t + kC4 * h);
+    for (size_t i = 0; i < n; ++i) {
+      Combine<4>(tmp[i], x[i], h, {kA51, kA52, kA53, kA54}, {&f[i], &k2_[i], &k3_[i], &k4_[i]});
+    }
+    sys(tmp, k5_, t + kC5 * h);
+    for (size_t i = 0; i < n; ++i) {
+      Combine<5>(tmp[i], x[i], h, {kA61, kA62, kA63, kA64, kA65},
+                 {&f[i], &k2_[i], &k3_[i], &k4_[i], &k5_[i]});
+    }
+    sys(tmp, k6_, t + h);
+    x1 = State{};
+    for (size_t i = 0; i < n; ++i) {
+      Combine<5>(x1[i], x[i], h, {kB1, kB3, kB4, kB5, kB6},
+                 {&f[i], &k3_[i], &k4_[i], &k5_[i], &k6_[i]});
+    }
+    sys(x1, f1, t + h);
+    err.fill(0.0);
+    for (size_t i = 0; i < n; ++i) {
+      err[i] = h * (kE1 * ValueOf(f[i]) + kE3 * ValueOf(k3_[i]) + kE4 * ValueOf(k4_[i]) +
+                    kE5 * ValueOf(k5_[i]) + kE6 * ValueOf(k6_[i]) + kE7 * ValueOf(f1[i]));
+    }
+  }
+
+  // The continuous extension of the last Step (x -> x1 over h, derivatives f, f1) at
+  // theta = (t' - t) / h in [0, 1].
+  void Dense(double theta, const State& x, const State& x1, const State& f, const State& f1,
+             double h, State& out, size_t n) const {
+    const double theta1 = 1.0 - theta;
+    out = State{};
+    for (size_t i = 0; i < n; ++i) {
+      const T diff = x1[i] - x[i];
+      const T bspl = h * f[i] - diff;
+      const T r4 = diff - h * f1[i] - bspl;
+      const T r5 = h * (kD1 * f[i] + kD3 * k3_[i] + kD4 * k4_[i] + kD5 * k5_[i] + kD6 * k6_[i] +
+                        kD7 * f1[i]);
+      out[i] = x[i] + theta * (diff + theta1 * (bspl + theta * (r4 + theta1 * r5)));
+    }
+  }
+
+ private:
+  State k2_{}, k3_{}, k4_{}, k5_{}, k6_{};
+};
+
+// log2 (to 0.01) and exp2 (to 0.3 %) for the step-size controller: exponent from the bits, a
+// quadratic on the mantissa (exact at both ends of [1, 2)). A step-size heuristic needs no
+// more; libm's pow, log2 and exp2 were 10-13 % of a Hertz contact's time.
+inline float ApproxLog2(float x) {  // x > 0, normal
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(x);
+  const int e = static_cast<int>((bits >> 23) & 0xffu) - 127;  // x = (1 + t) 2^e
+  const float t = std::bit_cast<float>((bits & 0x7fffffu) | 0x3f800000u) - 1.0f;
+  return static_cast<float>(e) + t * (4.0f / 3.0f - t / 3.0f);
+}
+inline float ApproxExp2(float y) {  // |y| < 126
+  const float n = std::floor(y);
+  const float f = y - n;  // 2^f on [0, 1): 1 + f (0.6565 + 0.3435 f), in [1, 2)
+  const float m = 1.0f + f * (0.6565f + 0.3435f * f);
+  const std::uint32_t e = static_cast<std::uint32_t>(static_cast<int>(n) + 127) << 23;
+  return std::bit_cast<float>((std::bit_cast<std::uint32_t>(m) & 0x7fffffu) | e) *
+         (m >= 2.0f ? 2.0f : 1.0f);
+}
+
+// PI step-size control (HNW §IV.2, eq. 2.43c; as in Hairer's DOPRI5): after a step with error
+// norm err (accepted if <= 1), the factor to multiply h by:
+//   accepted: clamp(0.9 / (err^(0.2 - 0.75 beta) / err_prev^beta), 0.2, 10), no growth right
+//             after a rejection;   rejected: 1 / min(5, err^(0.2 - 0.75 beta) / 0.9).
+class Controller {
+ public:
+  // Factor for the next step; remembers this step's error.
+  double Accepted(double err) {
+    const float log_err = ApproxLog2(static_cast<float>(std::clamp(err, 1e-30, 1e30)));  // +-100
+    const float log_prev = previous_log_;
+    previous_log_ = std::max(log_err, kInitialLog);  // err_prev >= 1e-4
+    double fac = ApproxExp2(kExponentF * log_err - kBetaF * log_prev) / kSafety;  // h / h_new
+    fac = 1.0 / std::clamp(fac, 1.0 / kMaxFactor, 1.0 / kMinFactor);
+    if (last_rejected_) fac = std::min(fac, 1.0);
+    last_rejected_ = false;
+    return fac;
+  }
+  double Rejected(double err) {
+    last_rejected_ = true;
+    const float log_err = ApproxLog2(static_cast<float>(std::min(err, 1e30)));
+    const double grow = ApproxExp2(kExponentF * log_err);
+    return 1.0 / std::min(1.0 / kMinFactor, grow / kSafety);
+  }
+  void Reset() {
+    previous_log_ = kInitialLog;
+    last_rejected_ = false;
+  }
+
+ private:
+  static constexpr double kBeta = 0.04;
+  static constexpr float kBetaF = static_cast<float>(kBeta);
+  static constexpr float kExponentF = static_cast<float>(0.2 - 0.75 * kBeta);
+  static constexpr double kSafety = 0.9;
+  static constexpr double kMinFactor = 0.2, kMaxFactor = 10.0;
+  static constexpr float kInitialLog = -13.287712f;  // log2(1e-4): the memory at the start
+  float previous_log_ = kInitialLog;
+  bool last_rejected_ = false;
+};
+
+}  // namespace bouncecal::dopri5

@@ -25,6 +25,7 @@
 #include "bouncecal/io/provenance.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
+#include "report_output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -49,6 +50,8 @@ struct CalibrateArgs {
   bool csv = false;
   int jobs = 1;
   bool batch = false;
+  ReportPaths report;  // --report FILE.html, --plot FILE.svg|png (report_output.hpp)
+  bool quiet = false;  // no progress line
 };
 
 std::string Num(double v, int prec = 10) {
@@ -164,7 +167,7 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
   std::vector<bool> done(n, false);
   std::mutex mu;
   size_t printed = 0, finished = 0;
-  const bool progress = ::isatty(STDERR_FILENO) != 0;
+  const bool progress = !a.quiet && ::isatty(STDERR_FILENO) != 0;
   std::string summary;  // for -o
   if (a.csv) {
     summary += CsvHeader(specs) + "\n";
@@ -264,6 +267,18 @@ void Run(const CalibrateArgs& a) {
   const ChannelSelection channel = ParseChannelSelection(a.channel);
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
+  if (a.report.any() && a.batch) {
+    throw Error(ErrorCode::kUsage, "--report/--plot show one fit: not with --batch (run "
+                                   "`bouncecal report FILE` per file)");
+  }
+  ReportPaths report = a.report;
+  report.force = a.force;
+  CheckReportPaths(report, a.files);
+  Progress progress(a.quiet);
+  auto write_report = [&](const Calibration* fit, const std::vector<LawComparisonRow>* rows) {
+    WriteReports(report, a.files, channel, scene, DropGiven(a.scene),
+                 {fit, rows, "", MakeProvenance(a.files), OptionsJson(opts), ""}, &progress);
+  };
 
   if (a.batch) {
     const int rc = RunBatch(a, scene, opts, channel);
@@ -276,7 +291,13 @@ void Run(const CalibrateArgs& a) {
   const nlohmann::json options_json = OptionsJson(opts);
 
   if (all) {
+    progress.Stage("fitting every law (--law all)");
     auto rows = CompareLaws(inputs, scene, opts, a.jobs);
+    progress.Done();
+    if (!rows.empty()) {
+      const bool failed = rows.front().fit.outcome == FitOutcome::kFailed;
+      write_report(failed ? nullptr : &rows.front().fit, &rows);
+    }
     if (rows.empty() || rows.front().fit.outcome == FitOutcome::kFailed) {
       throw Error(ErrorCode::kFitFailed, "no contact law could be fitted to these recordings" +
                                              (rows.empty() ? "" : ": " + rows.front().fit.message));
@@ -331,6 +352,7 @@ void Run(const CalibrateArgs& a) {
   }
 
   const Calibration c = Calibrate(inputs, scene, opts);
+  write_report(&c, nullptr);
   const nlohmann::json doc = ParamFileJson(c, prov, options_json);
   if (a.json) {
     std::cout << doc.dump(2) << "\n";
@@ -383,6 +405,9 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag("--csv", args->csv, "print CSV");
   sub->add_option("--jobs", args->jobs, "worker threads (detection; --batch fits)");
   sub->add_flag("--batch", args->batch, "fit each file separately, one summary line per file");
+  sub->add_option("--report", args->report.html, "also write the HTML report of this fit");
+  sub->add_option("--plot", args->report.plot, "also write its figures: FILE.svg or FILE.png");
+  sub->add_flag("--quiet", args->quiet, "no progress line on stderr (shown only on a terminal)");
   sub->callback([args]() { Run(*args); });
 }
 

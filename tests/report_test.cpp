@@ -213,9 +213,9 @@ testing_util::CommandResult RunChromium(const ScratchDir& dir, const std::string
       "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
       "--disable-background-networking --disable-component-update --disable-sync "
       "--hide-scrollbars --force-device-scale-factor=1 --host-resolver-rules='MAP * ~NOTFOUND' "
-      "--user-data-dir=" + dir / ("profile" + std::to_string(profile++)) +
-      " --window-size=1280," + std::to_string(height) + " --virtual-time-budget=10000 " + mode +
-      " file://" + page;
+      "--user-data-dir=" +
+      dir / ("profile" + std::to_string(profile++)) + " --window-size=1280," +
+      std::to_string(height) + " --virtual-time-budget=10000 " + mode + " file://" + page;
   return RunCommand("timeout 120 " + Chromium(), args);
 }
 
@@ -354,7 +354,8 @@ std::string WriteNoImpactRecording(const ScratchDir& dir) {
   std::normal_distribution<float> noise(0.0f, 0.01f);
   std::vector<float> x(3 * 48000);
   for (float& v : x) v = noise(rng);
-  for (int i = 0; i < 40; ++i) x[60000 + static_cast<size_t>(i)] += 0.6f * std::exp(-static_cast<float>(i) / 8.0f);
+  for (int i = 0; i < 40; ++i)
+    x[60000 + static_cast<size_t>(i)] += 0.6f * std::exp(-static_cast<float>(i) / 8.0f);
   const std::string path = dir / "noise.wav";
   WriteAudio(path, {x}, 48000);
   return path;
@@ -393,7 +394,8 @@ TEST(ReportCli, RefusesAnExistingOutputWithoutForce) {
   EXPECT_EQ(run.exit_code, 11);
   EXPECT_NE(run.err.find("exists; use --force"), std::string::npos) << run.err;
   EXPECT_EQ(Slurp(html), "keep me");
-  const auto forced = RunCommand(BOUNCECAL_BINARY, "report " + kFlac + " -o " + html + " --force --quiet");
+  const auto forced =
+      RunCommand(BOUNCECAL_BINARY, "report " + kFlac + " -o " + html + " --force --quiet");
   EXPECT_EQ(forced.exit_code, 0) << forced.err;
   EXPECT_NE(Slurp(html).find("bouncecal.report/1"), std::string::npos);
 }
@@ -428,23 +430,23 @@ TEST(ReportCli, RefusesUnwritableDirectories) {
 TEST(ReportFigures, SvgHasOneTrianglePerImpactAndPngIsAnImage) {
   ScratchDir dir("bc_report");
   const std::string svg = dir / "f.svg", png = dir / "f.png";
-  const auto run = RunCommand(BOUNCECAL_BINARY, "report " + kFlac + " --scene " + kScene +
-                                                    " --plot " + svg + " --quiet");
+  const auto run = RunCommand(
+      BOUNCECAL_BINARY, "report " + kFlac + " --scene " + kScene + " --plot " + svg + " --quiet");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const std::string text = Slurp(svg);
   ASSERT_NE(text.find("<svg"), std::string::npos);
   // gnuplot draws point type 9 (filled triangle) as <use xlink:href='#gpPt8' ... color=red>:
   // one per impact plus the key's sample.
   const std::regex tri(R"(<use xlink:href='#gpPt8'[^>]*color='rgb\(214,\s*39,\s*40\)')");
-  const auto n = std::distance(std::sregex_iterator(text.begin(), text.end(), tri),
-                               std::sregex_iterator());
+  const auto n =
+      std::distance(std::sregex_iterator(text.begin(), text.end(), tri), std::sregex_iterator());
   EXPECT_EQ(n, 52 + 1);
-  for (const char* title : {"intervals per bounce", "fit residuals", "restitution against impact speed",
-                            "kinetic energy at impact"}) {
+  for (const char* title : {"intervals per bounce", "fit residuals",
+                            "restitution against impact speed", "kinetic energy at impact"}) {
     EXPECT_NE(text.find(title), std::string::npos) << title;
   }
-  const auto run_png = RunCommand(BOUNCECAL_BINARY, "report " + kFlac + " --scene " + kScene +
-                                                        " --plot " + png + " --quiet");
+  const auto run_png = RunCommand(
+      BOUNCECAL_BINARY, "report " + kFlac + " --scene " + kScene + " --plot " + png + " --quiet");
   ASSERT_EQ(run_png.exit_code, 0) << run_png.err;
   const Image img = ReadPng(png);
   EXPECT_EQ(img.width, 1400);   // 2 columns of 700 px
@@ -468,8 +470,9 @@ TEST(ReportCli, CalibrateReportCarriesTheFitOfTheParameterFile) {
   EXPECT_EQ(data["fit"]["parameters"]["A"]["sigma"], p["parameters"]["A"]["sigma"]);
   EXPECT_EQ(data["recordings"][0]["impacts"].size(), 52u);
   // An existing report is refused before the fit (and the parameter file is not written).
-  const auto again = RunCommand(BOUNCECAL_BINARY, "calibrate " + kFlac + " --scene " + kScene +
-                                                      " -o " + dir / "p2.json" + " --report " + html);
+  const auto again =
+      RunCommand(BOUNCECAL_BINARY, "calibrate " + kFlac + " --scene " + kScene + " -o " +
+                                       dir / "p2.json" + " --report " + html);
   EXPECT_EQ(again.exit_code, 11);
   EXPECT_FALSE(std::filesystem::exists(dir / "p2.json"));
 }

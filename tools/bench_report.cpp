@@ -55,11 +55,13 @@ void Run(const Case& c, const std::filesystem::path& dir) {
 
   AnalysisOptions analysis;
   ReportRecording rec;
-  const double t_detect = MedianSeconds(
-      [&] { rec = LoadReportRecording(wav, DetectOptions{}, spec.scene, analysis); });
+  const double t_detect =
+      MedianSeconds([&] { rec = LoadReportRecording(wav, DetectOptions{}, spec.scene, analysis); });
   Calibration fit;
   const double t_fit = MedianSeconds(
-      [&] { fit = Calibrate({{wav, rec.detection->main()}}, spec.scene, CalibrationOptions{}); },
+      [&] {
+        fit = Calibrate({{wav, rec.detection->main()}}, spec.scene, CalibrationOptions{});
+      },
       1);
   const Provenance prov = MakeProvenance({wav});
   const std::string html = (dir / ("bench_" + std::to_string(c.drops) + ".html")).string();
@@ -71,7 +73,8 @@ void Run(const Case& c, const std::filesystem::path& dir) {
   in.provenance = prov;
   const double t_data = MedianSeconds([&] { data = ReportDataJson(in); });
   const double t_html = MedianSeconds([&] { page = RenderHtmlReport(data); });
-  const double t_write = MedianSeconds([&] { WriteHtmlReport(html, data, {.force = true, .inputs = {}}); });
+  const double t_write =
+      MedianSeconds([&] { WriteHtmlReport(html, data, {.force = true, .inputs = {}}); });
   const double report_s = t_data + t_write;  // the write renders the page again
   size_t impacts = 0;
   for (const Sequence& q : rec.detection->sequences) impacts += q.impacts.size();
@@ -87,17 +90,20 @@ int main() {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("bc_bench_report_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
-  std::printf("Report generation for 60 s recordings (48 kHz; wall-clock medians of 3 runs, "
-              "the fit timed once)\n\n");
-  std::printf("| recording | duration (s) | impacts | read + detect (s) | fit (s) | report data "
-              "(s) | HTML page (s) | page + atomic write (s) | report total (s) | size (MB) | "
-              "<= 1 s and <= 5 MB |\n");
+  std::printf(
+      "Report generation for 60 s recordings (48 kHz; wall-clock medians of 3 runs, "
+      "the fit timed once)\n\n");
+  std::printf(
+      "| recording | duration (s) | impacts | read + detect (s) | fit (s) | report data "
+      "(s) | HTML page (s) | page + atomic write (s) | report total (s) | size (MB) | "
+      "<= 1 s and <= 5 MB |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Case& c : {Case{"1 drop + 54 s of noise", 1}, Case{"6 drops, 10 s apart", 6}})
     Run(c, dir);
-  std::printf("\nreport total = report data (waveform decimation, energy-ledger simulation, the "
-              "fit in the parameter file's schema) + page rendering and atomic write; the whole "
-              "`bouncecal report` adds read + detect and the fit.\n");
+  std::printf(
+      "\nreport total = report data (waveform decimation, energy-ledger simulation, the "
+      "fit in the parameter file's schema) + page rendering and atomic write; the whole "
+      "`bouncecal report` adds read + detect and the fit.\n");
   std::filesystem::remove_all(dir);
   return 0;
 }

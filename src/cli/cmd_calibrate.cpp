@@ -268,8 +268,9 @@ void Run(const CalibrateArgs& a) {
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
   if (a.report.any() && a.batch) {
-    throw Error(ErrorCode::kUsage, "--report/--plot show one fit: not with --batch (run "
-                                   "`bouncecal report FILE` per file)");
+    throw Error(ErrorCode::kUsage,
+                "--report/--plot show one fit: not with --batch (run "
+                "`bouncecal report FILE` per file)");
   }
   ReportPaths report = a.report;
   report.force = a.force;

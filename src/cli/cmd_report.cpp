@@ -52,7 +52,8 @@ struct FitStage {
   std::vector<LawComparisonRow> rows;
   std::optional<Error> error;
   const Calibration* best() const {
-    if (!rows.empty()) return rows.front().fit.outcome == FitOutcome::kFailed ? nullptr : &rows[0].fit;
+    if (!rows.empty())
+      return rows.front().fit.outcome == FitOutcome::kFailed ? nullptr : &rows[0].fit;
     return fit ? &*fit : nullptr;
   }
 };
@@ -87,8 +88,8 @@ FitStage Fit(const std::vector<ReportRecording>& recordings, const Scene& scene,
   }
   const Calibration* best = out.best();
   if (!out.error && best != nullptr && best->outcome != FitOutcome::kConverged) {
-    out.error = Error(ErrorCode::kFitFailed, std::string("fit ") + FitOutcomeName(best->outcome) +
-                                                 ": " + best->message);
+    out.error = Error(ErrorCode::kFitFailed,
+                      std::string("fit ") + FitOutcomeName(best->outcome) + ": " + best->message);
   }
   return out;
 }
@@ -125,8 +126,10 @@ void Run(const ReportArgs& a) {
   std::vector<Warning> warnings;
   for (const ReportRecording& r : recordings) {
     if (!r.no_impacts_reason.empty()) no_impacts.push_back(r.no_impacts_reason);
-    if (r.detection) warnings.insert(warnings.end(), r.detection->warnings.begin(), r.detection->warnings.end());
-    if (r.analysis) warnings.insert(warnings.end(), r.analysis->warnings.begin(), r.analysis->warnings.end());
+    if (r.detection)
+      warnings.insert(warnings.end(), r.detection->warnings.begin(), r.detection->warnings.end());
+    if (r.analysis)
+      warnings.insert(warnings.end(), r.analysis->warnings.begin(), r.analysis->warnings.end());
   }
   const int n_recordings = static_cast<int>(recordings.size());
   ReportResults results;
@@ -142,8 +145,8 @@ void Run(const ReportArgs& a) {
   PrintWarnings(warnings);
   for (const std::string* p : {&a.paths.html, &a.paths.plot}) {
     if (p->empty()) continue;
-    std::cout << "wrote " << *p << " (" << std::filesystem::file_size(*p) / 1024 << " kB): "
-              << n_recordings << " recording(s)";
+    std::cout << "wrote " << *p << " (" << std::filesystem::file_size(*p) / 1024
+              << " kB): " << n_recordings << " recording(s)";
     if (fit.best() != nullptr) std::cout << "; " << fit.best()->BriefReport();
     std::cout << "\n";
   }
@@ -163,8 +166,9 @@ void Run(const ReportArgs& a) {
 void RegisterReport(CLI::App& app) {
   auto args = std::make_shared<ReportArgs>();
   CLI::App* sub = app.add_subcommand(
-      "report", "detect, analyze and fit recordings; write a self-contained HTML report and/or "
-                "a static figure");
+      "report",
+      "detect, analyze and fit recordings; write a self-contained HTML report and/or "
+      "a static figure");
   sub->add_option("files", args->files, "recordings (several: one joint fit)")->required();
   sub->add_option("-o,--output", args->paths.html, "write the HTML report here");
   sub->add_option("--plot", args->paths.plot,

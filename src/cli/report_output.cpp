@@ -14,9 +14,9 @@ void CheckReportPaths(const ReportPaths& paths, const std::vector<std::string>& 
   if (!paths.plot.empty()) {
     const std::string ext = std::filesystem::path(paths.plot).extension().string();
     if (ext != ".svg" && ext != ".png") {
-      throw Error(ErrorCode::kUsage,
-                  "--plot " + paths.plot + ": the figure's format comes from its extension, "
-                                           "expected .svg or .png");
+      throw Error(ErrorCode::kUsage, "--plot " + paths.plot +
+                                         ": the figure's format comes from its extension, "
+                                         "expected .svg or .png");
     }
   }
   if (!paths.html.empty() && paths.html == paths.plot) {

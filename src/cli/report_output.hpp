@@ -57,10 +57,8 @@ void WriteReportOutputs(const ReportPaths& paths, std::vector<ReportRecording> r
 
 // LoadRecordings + WriteReportOutputs, for `calibrate --report` (its fit keeps only the main
 // sequences, so the recordings are read and detected again).
-void WriteReports(const ReportPaths& paths,
-                                      const std::vector<std::string>& files,
-                                      const ChannelSelection& channel, const Scene& scene,
-                                      bool use_drop, const ReportResults& results,
-                                      Progress* progress);
+void WriteReports(const ReportPaths& paths, const std::vector<std::string>& files,
+                  const ChannelSelection& channel, const Scene& scene, bool use_drop,
+                  const ReportResults& results, Progress* progress);
 
 }  // namespace bouncecal::cli

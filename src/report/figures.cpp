@@ -89,8 +89,12 @@ Panel WaveformPanel(const json& rec) {
   p.plot = "set title " + Quote(title) +
            "\nset xlabel 'time (s)'\nset ylabel 'amplitude (full scale)'\n"
            "plot $envelope using 1:2:3 with filledcurves lc rgb '#9ecae1' title 'min/max envelope'";
-  if (imp.rows() > 0) p.plot += ", $impacts using 1:2 with points pt 9 ps 1.2 lc rgb '#d62728' title 'impacts'";
-  if (rej.rows() > 0) p.plot += ", $rejected using 1:2 with points pt 2 ps 1.2 lc rgb '#ff7f0e' title 'rejected candidates'";
+  if (imp.rows() > 0)
+    p.plot += ", $impacts using 1:2 with points pt 9 ps 1.2 lc rgb '#d62728' title 'impacts'";
+  if (rej.rows() > 0)
+    p.plot +=
+        ", $rejected using 1:2 with points pt 2 ps 1.2 lc rgb '#ff7f0e' title 'rejected "
+        "candidates'";
   p.plot += "\n";
   return p;
 }
@@ -126,10 +130,11 @@ Panel RestitutionPanel(const json& data) {
     }
     p.blocks += ev.Text();
     const std::string law = fit["law"].get<std::string>();
-    plots += "$e_of_v using 1:3:4 with filledcurves lc rgb '#2ca02c' fs transparent solid 0.25 "
-             "title " + Quote(law + " e(v) ± σ") +
-             ", $e_of_v using 1:2 with lines lw 2 lc rgb '#2ca02c' title " + Quote(law + " e(v)") +
-             ", ";
+    plots +=
+        "$e_of_v using 1:3:4 with filledcurves lc rgb '#2ca02c' fs transparent solid 0.25 "
+        "title " +
+        Quote(law + " e(v) ± σ") + ", $e_of_v using 1:2 with lines lw 2 lc rgb '#2ca02c' title " +
+        Quote(law + " e(v)") + ", ";
   }
   const json& rows = data["law_comparison"];
   for (size_t r = 1; r < rows.size(); ++r) {
@@ -141,10 +146,12 @@ Panel RestitutionPanel(const json& data) {
     plots += other.name() + " using 1:2 with lines dt 2 lw 1 title " +
              Quote(rows[r]["law"].get<std::string>()) + ", ";
   }
-  p.plot = "set title 'restitution against impact speed'\nset logscale x\n"
-           "set xlabel 'impact speed v_in (m/s)'\nset ylabel 'e'\nplot " + plots +
-           "$e_points using 1:2:3:4 with xyerrorbars pt 7 ps 0.6 lc rgb '#1f77b4' title "
-           "'measured e ± σ'\nunset logscale x\n";
+  p.plot =
+      "set title 'restitution against impact speed'\nset logscale x\n"
+      "set xlabel 'impact speed v_in (m/s)'\nset ylabel 'e'\nplot " +
+      plots +
+      "$e_points using 1:2:3:4 with xyerrorbars pt 7 ps 0.6 lc rgb '#1f77b4' title "
+      "'measured e ± σ'\nunset logscale x\n";
   return p;
 }
 
@@ -154,7 +161,8 @@ Panel ResidualsPanel(const json& rec) {
   const double k = seconds ? 1e6 : 1.0;
   Block b("$residuals");
   for (const json& v : r["values"])
-    if (Finite(v["residual"])) b.Row({D(v["index"]), D(v["residual"]) * k, SigmaOr0(v["sigma"]) * k});
+    if (Finite(v["residual"]))
+      b.Row({D(v["index"]), D(v["residual"]) * k, SigmaOr0(v["sigma"]) * k});
   return {b.Text(), std::string("set title 'fit residuals (model - measured)'\nset xlabel ") +
                         (seconds ? "'impact k'\nset ylabel 'residual (µs)'\n"
                                  : "'e point'\nset ylabel 'residual in e'\n") +
@@ -184,7 +192,8 @@ Panel EnergyPanel(const json& data) {
 void RunGnuplot(const std::string& script, const std::string& log, const std::string& target) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0600);
   posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
   std::string prog = "gnuplot";
   std::vector<char*> argv = {prog.data(), const_cast<char*>(script.c_str()), nullptr};
@@ -192,9 +201,8 @@ void RunGnuplot(const std::string& script, const std::string& log, const std::st
   const int rc = posix_spawnp(&pid, "gnuplot", &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) {
-    throw Error(ErrorCode::kOutput,
-                target + ": cannot run gnuplot (" + std::strerror(rc) +
-                    "); the figures need it: apt-get install gnuplot-nox");
+    throw Error(ErrorCode::kOutput, target + ": cannot run gnuplot (" + std::strerror(rc) +
+                                        "); the figures need it: apt-get install gnuplot-nox");
   }
   int status = 0;
   while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
@@ -250,11 +258,13 @@ void WriteFigure(const std::string& path, const nlohmann::json& report_data,
                  const WriteOptions& options) {
   const std::string ext = std::filesystem::path(path).extension().string();
   if (ext != ".svg" && ext != ".png") {
-    throw Error(ErrorCode::kUsage, path + ": a figure's format comes from its extension, "
-                                          "expected .svg or .png");
+    throw Error(ErrorCode::kUsage, path +
+                                       ": a figure's format comes from its extension, "
+                                       "expected .svg or .png");
   }
   AtomicFile out(path, options);
-  std::string dir_template = (std::filesystem::temp_directory_path() / "bouncecal-fig-XXXXXX").string();
+  std::string dir_template =
+      (std::filesystem::temp_directory_path() / "bouncecal-fig-XXXXXX").string();
   if (::mkdtemp(dir_template.data()) == nullptr) {
     throw Error(ErrorCode::kOutput, path + ": cannot create a temporary directory for gnuplot");
   }

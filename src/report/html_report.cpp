@@ -14,11 +14,20 @@ std::string HtmlEscape(const std::string& s) {
   out.reserve(s.size());
   for (char c : s) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -58,9 +67,7 @@ void Fill(std::string* page, std::string_view key, std::string_view value) {
 
 }  // namespace
 
-std::string ReportLibraryVersions() {
-  return std::string(report_assets::ChartLibraryVersions());
-}
+std::string ReportLibraryVersions() { return std::string(report_assets::ChartLibraryVersions()); }
 
 std::string RenderHtmlReport(const nlohmann::json& report_data) {
   std::string page(report_assets::PageTemplate());

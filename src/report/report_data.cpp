@@ -49,11 +49,11 @@ double ImpactTime(const DetectionResult& d, int impact) {
   if (d.main_sequence < 0 || impact < 0) return std::numeric_limits<double>::quiet_NaN();
   const auto& imps = d.main().impacts;
   return impact < static_cast<int>(imps.size()) ? imps[static_cast<size_t>(impact)].time_s
-                                                 : std::numeric_limits<double>::quiet_NaN();
+                                                : std::numeric_limits<double>::quiet_NaN();
 }
 
 json ImpactJson(const Impact& i) {
-  return {{"time_s", i.time_s},   {"sigma_s", Num(i.sigma_s)}, {"amplitude", Num(i.amplitude)},
+  return {{"time_s", i.time_s},      {"sigma_s", Num(i.sigma_s)}, {"amplitude", Num(i.amplitude)},
           {"snr_db", Num(i.snr_db)}, {"score", Num(i.score)},     {"clipped", i.clipped}};
 }
 
@@ -189,11 +189,12 @@ json RecordingJson(const ReportRecording& r, const Calibration* c,
   j["no_impacts_reason"] = r.no_impacts_reason.empty() ? json() : json(r.no_impacts_reason);
   j["intervals"] = r.detection ? IntervalsJson(*r.detection) : json::array();
   j["bounces"] = r.analysis ? BouncesJson(*r.analysis) : json::array();
-  j["summary"] = r.analysis ? json{{"mean_eta_first3", Opt(r.analysis->mean_eta_first3)},
-                                   {"mean_eta_first3_sigma", Opt(r.analysis->mean_eta_first3_sigma)},
-                                   {"first_e", Opt(r.analysis->first_e)},
-                                   {"first_e_sigma", Opt(r.analysis->first_e_sigma)}}
-                            : json();
+  j["summary"] = r.analysis
+                     ? json{{"mean_eta_first3", Opt(r.analysis->mean_eta_first3)},
+                            {"mean_eta_first3_sigma", Opt(r.analysis->mean_eta_first3_sigma)},
+                            {"first_e", Opt(r.analysis->first_e)},
+                            {"first_e_sigma", Opt(r.analysis->first_e_sigma)}}
+                     : json();
   j["residuals"] = ResidualsJson(r, c);
   j["warnings"] = WarningsJson(r);
   return j;
@@ -311,13 +312,14 @@ ReportRecording LoadReportRecording(const std::string& path, const DetectOptions
     if (e.code() != ErrorCode::kNoBounces && e.code() != ErrorCode::kSilence) throw;
     r.no_impacts_reason = e.what();
   }
-  SelectedSignal shown = ShownChannel(audio, detect_options.channel,
-                                      r.detection ? &*r.detection : nullptr);
+  SelectedSignal shown =
+      ShownChannel(audio, detect_options.channel, r.detection ? &*r.detection : nullptr);
   r.channel = shown.channel;
   r.samples = std::move(shown.samples);
   if (!r.detection) {
     if (r.no_impacts_reason.find("silent") == std::string::npos)
-      r.candidates = CandidatesWithoutSequence(r.samples, audio.info.sample_rate_hz, detect_options);
+      r.candidates =
+          CandidatesWithoutSequence(r.samples, audio.info.sample_rate_hz, detect_options);
     return r;
   }
   try {
@@ -351,8 +353,10 @@ nlohmann::json WaveformJson(const std::vector<float>& samples, double rate_hz,
   // Full-resolution windows around the marks, merged where they overlap.
   std::vector<std::pair<long, long>> spans;
   for (double t : times_s) {
-    const long lo = std::max(0L, static_cast<long>(std::floor((t - options.window_before_s) * rate_hz)));
-    const long hi = std::min(n, static_cast<long>(std::ceil((t + options.window_after_s) * rate_hz)));
+    const long lo =
+        std::max(0L, static_cast<long>(std::floor((t - options.window_before_s) * rate_hz)));
+    const long hi =
+        std::min(n, static_cast<long>(std::ceil((t + options.window_after_s) * rate_hz)));
     if (hi <= lo) continue;
     if (!spans.empty() && lo <= spans.back().second)
       spans.back().second = std::max(spans.back().second, hi);
@@ -374,9 +378,10 @@ nlohmann::json WaveformJson(const std::vector<float>& samples, double rate_hz,
   return {{"rate_hz", rate_hz},
           {"scale", scale},
           {"peak", peak},
-          {"envelope", {{"bin_s", n > 0 ? static_cast<double>(n) / static_cast<double>(bins) / rate_hz : 0.0},
-                        {"min", mins},
-                        {"max", maxs}}},
+          {"envelope",
+           {{"bin_s", n > 0 ? static_cast<double>(n) / static_cast<double>(bins) / rate_hz : 0.0},
+            {"min", mins},
+            {"max", maxs}}},
           {"windows", windows},
           {"windows_dropped", dropped}};
 }

@@ -65,7 +65,7 @@ struct ReportRecording {
   std::optional<DetectionResult> detection;
   std::vector<Impact> candidates;  // every onset found (also when no sequence was found)
   std::optional<Analysis> analysis;
-  std::string no_impacts_reason;   // why there are no impacts / bounces ("" if there are)
+  std::string no_impacts_reason;  // why there are no impacts / bounces ("" if there are)
 };
 
 // Reads and detects one recording for the report. Throws what ReadAudio throws (missing file,

@@ -348,6 +348,66 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
   EXPECT_LT(text.size(), 5u * 1024 * 1024);
 }
 
+// A hand-made result (what the detector and the kinematics return) with two rejected candidates
+// and two warnings, one of them at impact 2: the page marks each where it belongs.
+TEST(ReportBrowser, RejectedCandidatesAndWarningsAreMarkedWhereTheyBelong) {
+  ASSERT_FALSE(Chromium().empty()) << "chromium is missing: run tools/install-deps.sh";
+  ScratchDir dir("bc_report");
+  const double rate = 8000.0;
+  ReportRecording rec;
+  rec.path = "hand-made.wav";
+  rec.audio.path = rec.path;
+  rec.audio.sample_rate_hz = rate;
+  rec.audio.channels = 1;
+  rec.audio.frames = 16000;
+  rec.channel = 0;
+  rec.samples.assign(16000, 0.0f);
+  DetectionResult d;
+  d.audio = rec.audio;
+  d.channel = 0;
+  Sequence q;
+  for (double t : {0.5, 0.9, 1.2, 1.42}) q.impacts.push_back({t, 5e-6, 0.5, 40.0, 0.9, false});
+  d.sequences = {q};
+  d.main_sequence = 0;
+  d.candidates = q.impacts;
+  for (double t : {0.7, 1.6}) d.candidates.push_back({t, 2e-5, 0.2, 12.0, 0.3, false});
+  for (const Impact& i : d.candidates) {
+    for (int k = 0; k < 40; ++k) {
+      rec.samples[static_cast<size_t>(i.time_s * rate) + static_cast<size_t>(k)] =
+          static_cast<float>(i.amplitude * std::exp(-k / 6.0) * (k % 2 ? -1 : 1));
+    }
+  }
+  d.warnings = {{"missed_impact", "an impact seems missing after impact 2", 2},
+                {"clipped", "channel 0 is clipped", -1}};
+  rec.detection = d;
+  rec.candidates = d.candidates;
+  AnalysisOptions no_drop;
+  no_drop.use_drop = false;
+  rec.analysis = AnalyzeBounces(q, Scene{}, no_drop);
+  ReportInput in;
+  in.recordings.push_back(rec);
+  const nlohmann::json data = ReportDataJson(in);
+  ASSERT_EQ(data["recordings"][0]["rejected"].size(), 2u);
+  EXPECT_EQ(data["recordings"][0]["warnings"][0]["time_s"].get<double>(), 1.2);
+  EXPECT_TRUE(data["recordings"][0]["warnings"][1]["time_s"].is_null());
+  const std::string html = dir / "hand.html";
+  WriteHtmlReport(html, data, {.force = false, .inputs = {}});
+
+  const Rendered r = Render(dir, html);
+  ASSERT_EQ(BodyAttr(r.dom, "data-report-state"), "drawn") << BodyAttr(r.dom, "data-report-error");
+  const auto canvases = Canvases(r.dom);
+  const Canvas& wave = canvases.at("waveform-0");
+  EXPECT_EQ(wave.attr.at("data-impact-marks"), "4");
+  EXPECT_EQ(wave.attr.at("data-rejected-marks"), "2");
+  EXPECT_EQ(wave.attr.at("data-warning-lines"), "1");  // the clipped warning has no place
+  EXPECT_NE(r.dom.find("<code>missed_impact</code>"), std::string::npos);
+  EXPECT_NE(r.dom.find("<code>clipped</code>"), std::string::npos);
+  ASSERT_GT(r.shot.width, 0);
+  // Orange crosses (#ff7f0e) and the purple warning line (#9467bd) are on the screenshot.
+  EXPECT_GT(CountPixels(r.shot, wave, 0xff, 0x7f, 0x0e).near_color, 2 * 10);
+  EXPECT_GT(CountPixels(r.shot, wave, 0x94, 0x67, 0xbd).near_color, 100);
+}
+
 // 3 s of noise and one click: no bounce sequence.
 std::string WriteNoImpactRecording(const ScratchDir& dir) {
   std::mt19937 rng(7);

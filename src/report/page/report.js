@@ -65,6 +65,8 @@
       canvas.setAttribute('data-impact-marks', impacts);
       canvas.setAttribute('data-rejected-marks', rejected);
       canvas.setAttribute('data-point-marks', points);
+      const ann = chart.options.plugins && chart.options.plugins.annotation;
+      canvas.setAttribute('data-warning-lines', ann && ann.annotations ? Object.keys(ann.annotations).length : 0);
       const r = canvas.getBoundingClientRect();
       canvas.setAttribute('data-rect', [r.left + window.scrollX, r.top + window.scrollY,
         r.width, r.height].map(Math.round).join(','));

@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Installs every build, test and benchmark dependency of bouncecal from Debian 12's packages.
-# Idempotent: skips apt entirely when every package is already installed.
+# Installs every build, test and benchmark dependency of bouncecal from Debian 12's packages,
+# then the report's charting libraries from the npm registry (package-lock.json: `npm ci`).
+# Idempotent: skips apt entirely when every package is already installed, and npm when
+# node_modules matches package-lock.json.
 set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
 pkgs=(
   build-essential cmake pkg-config
   libfftw3-dev libsndfile1-dev libavformat-dev libavcodec-dev libavutil-dev libswresample-dev
@@ -10,17 +13,31 @@ pkgs=(
   libgtest-dev libgmock-dev
   aubio-tools
   ffmpeg
+  gnuplot-nox        # report figures (--plot FILE.svg|png)
+  chromium           # the report's browser test (headless)
+  libpng-dev         # the browser test reads its screenshot
+  bsdutils           # `script`: the progress test runs the CLI on a pseudo-terminal
 )
+# Node.js and npm install the report's charting libraries at build time. A machine that already
+# has them (Debian's packages or another node build that ships npm) keeps its own.
+if ! command -v npm >/dev/null 2>&1; then pkgs+=(nodejs npm); fi
 missing=()
 for p in "${pkgs[@]}"; do
+  # A gnuplot with cairo terminals (gnuplot-qt, gnuplot-x11) serves as well as gnuplot-nox.
+  if [ "$p" = gnuplot-nox ] && command -v gnuplot >/dev/null 2>&1; then continue; fi
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-if [ ${#missing[@]} -eq 0 ]; then
-  exit 0
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}" >&2
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
-echo "install-deps: installing ${missing[*]}" >&2
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+# The charting libraries inlined into the HTML report (versions pinned in package-lock.json).
+if [ ! -f "$root/node_modules/.package-lock.json" ] ||
+   [ "$root/package-lock.json" -nt "$root/node_modules/.package-lock.json" ]; then
+  echo "install-deps: npm ci (charting libraries for the HTML report)" >&2
+  (cd "$root" && npm ci --no-audit --no-fund --loglevel=error)
+fi

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <mutex>
 #include <sstream>
@@ -30,6 +31,7 @@
 #include "commands.hpp"
 #include "detect_flags.hpp"
 #include "output.hpp"
+#include "report_output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -56,6 +58,8 @@ struct CalibrateArgs {
   bool csv = false;
   int jobs = 1;
   bool batch = false;
+  ReportPaths report;  // --report FILE.html, --plot FILE.svg|png (report_output.hpp)
+  bool quiet = false;  // no progress line
 };
 
 std::string Num(double v, int prec = 10) {
@@ -183,7 +187,7 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
   std::vector<bool> done(n, false);
   std::mutex mu;
   size_t printed = 0, finished = 0;
-  const bool progress = ::isatty(STDERR_FILENO) != 0;
+  const bool progress = !a.quiet && ::isatty(STDERR_FILENO) != 0;
   std::string summary;  // for -o
   if (a.csv) {
     summary += CsvHeader(specs) + "\n";
@@ -312,8 +316,13 @@ void ExitWithOutcome(const Calibration& c) {
 
 void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const CalibrationOptions& opts,
                    const std::vector<CalibrationInput>& inputs, const Provenance& prov,
-                   const nlohmann::json& options_json) {
+                   const nlohmann::json& options_json, Progress* progress,
+                   const std::function<void(const Calibration*,
+                                            const std::vector<LawComparisonRow>*)>& write_report) {
+  progress->Stage("fitting every law (--law all)");
   auto rows = CompareLaws(inputs, gs.scene, opts, a.jobs);
+  progress->Done();
+  if (!rows.empty()) write_report(rows.front().adequate ? &rows.front().fit : nullptr, &rows);
   const bool any = !rows.empty() && rows.front().adequate;
   std::vector<double> speeds;
   for (const auto& r : rows) {
@@ -396,6 +405,19 @@ void Run(const CalibrateArgs& a) {
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
   const std::vector<Warning> unit_warnings = SceneUnitWarnings(scene, opts.use_drop);
+  if (a.report.any() && a.batch) {
+    throw Error(ErrorCode::kUsage,
+                "--report/--plot show one fit: not with --batch (run "
+                "`bouncecal report FILE` per file)");
+  }
+  ReportPaths report = a.report;
+  report.force = a.force;
+  CheckReportPaths(report, a.files);
+  Progress progress(a.quiet);
+  auto write_report = [&](const Calibration* fit, const std::vector<LawComparisonRow>* rows) {
+    WriteReports(report, a.files, MakeDetectOptions(a.detect), scene, gs.drop_given,
+                 {fit, rows, "", MakeProvenance(a.files), OptionsJson(opts), ""}, &progress);
+  };
 
   if (a.batch) {
     PrintWarnings(unit_warnings);
@@ -409,10 +431,13 @@ void Run(const CalibrateArgs& a) {
   const nlohmann::json options_json = OptionsJson(opts);
   if (all) {
     PrintWarnings(unit_warnings);
-    return RunComparison(a, gs, opts, inputs, prov, options_json);
+    return RunComparison(a, gs, opts, inputs, prov, options_json, &progress, write_report);
   }
 
+  progress.Stage("fitting " + scene.law.name);
   Calibration c = Calibrate(inputs, scene, opts);
+  progress.Done();
+  write_report(&c, nullptr);
   c.warnings.insert(c.warnings.begin(), unit_warnings.begin(), unit_warnings.end());
   const std::vector<Assumed> assumed = AssumedFor(gs, c);
   nlohmann::json doc = ParamFileJson(c, prov, options_json);
@@ -471,6 +496,9 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag("--csv", args->csv, "print CSV");
   sub->add_option("--jobs", args->jobs, "worker threads (detection; --batch fits)");
   sub->add_flag("--batch", args->batch, "fit each file separately, one summary line per file");
+  sub->add_option("--report", args->report.html, "also write the HTML report of this fit");
+  sub->add_option("--plot", args->report.plot, "also write its figures: FILE.svg or FILE.png");
+  sub->add_flag("--quiet", args->quiet, "no progress line on stderr (shown only on a terminal)");
   sub->callback([args]() { Run(*args); });
 }
 

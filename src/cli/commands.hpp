@@ -15,5 +15,6 @@ void RegisterLaws(CLI::App& app);
 void RegisterSimulate(CLI::App& app);
 void RegisterCalibrate(CLI::App& app);
 void RegisterExport(CLI::App& app);
+void RegisterReport(CLI::App& app);
 
 }  // namespace bouncecal::cli

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   bouncecal::cli::RegisterSimulate(app);
   bouncecal::cli::RegisterCalibrate(app);
   bouncecal::cli::RegisterExport(app);
+  bouncecal::cli::RegisterReport(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

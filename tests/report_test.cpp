@@ -108,7 +108,9 @@ const BundledReport& Bundled() {
     const Scene scene = LoadSceneFile(kScene);
     ReportRecording rec = LoadReportRecording(kFlac, DetectOptions{}, scene, AnalysisOptions{});
     b.detection = *rec.detection;
-    b.fit = Calibrate({{kFlac, rec.detection->main()}}, scene, CalibrationOptions{});
+    CalibrationOptions trajectory;  // impact-time residuals (the restitution fit's are e's)
+    trajectory.strategy = FitStrategy::kTrajectory;
+    b.fit = Calibrate({{kFlac, rec.detection->main()}}, scene, trajectory);
     ReportInput in;
     in.recordings.push_back(std::move(rec));
     in.calibration = &b.fit;
@@ -325,7 +327,9 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
   EXPECT_EQ(std::stoul(canvases.at("waveform-0").attr.at("data-impact-marks")), expected_impacts);
   EXPECT_EQ(std::stoul(canvases.at("intervals-0").attr.at("data-point-marks")),
             expected_impacts - 1);
-  EXPECT_EQ(std::stoul(canvases.at("residuals-0").attr.at("data-point-marks")), expected_impacts);
+  // The default (restitution) fit has one residual per bounce with an e: all but the last.
+  EXPECT_EQ(std::stoul(canvases.at("residuals-0").attr.at("data-point-marks")),
+            expected_impacts - 1);
   EXPECT_EQ(std::stoul(canvases.at("restitution").attr.at("data-point-marks")),
             expected_impacts - 1);  // the last impact has no e
 
@@ -455,7 +459,8 @@ TEST(ReportCli, RefusesAnExistingOutputWithoutForce) {
   EXPECT_NE(run.err.find("exists; use --force"), std::string::npos) << run.err;
   EXPECT_EQ(Slurp(html), "keep me");
   const auto forced =
-      RunCommand(BOUNCECAL_BINARY, "report " + kFlac + " -o " + html + " --force --quiet");
+      RunCommand(BOUNCECAL_BINARY,
+                 "report " + kFlac + " --scene " + kScene + " -o " + html + " --force --quiet");
   EXPECT_EQ(forced.exit_code, 0) << forced.err;
   EXPECT_NE(Slurp(html).find("bouncecal.report/1"), std::string::npos);
 }

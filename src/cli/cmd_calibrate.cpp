@@ -415,7 +415,7 @@ void Run(const CalibrateArgs& a) {
   CheckReportPaths(report, a.files);
   Progress progress(a.quiet);
   auto write_report = [&](const Calibration* fit, const std::vector<LawComparisonRow>* rows) {
-    WriteReports(report, a.files, MakeDetectOptions(a.detect), scene, gs.drop_given,
+    WriteReports(report, a.files, MakeDetectOptions(a.detect), scene, ReportAnalysisOptions(gs),
                  {fit, rows, "", MakeProvenance(a.files), OptionsJson(opts), ""}, &progress);
   };
 

@@ -21,6 +21,7 @@
 #include "bouncecal/io/provenance.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
+#include "detect_flags.hpp"
 #include "output.hpp"
 #include "progress.hpp"
 #include "report_output.hpp"
@@ -33,11 +34,11 @@ struct ReportArgs {
   std::vector<std::string> files;
   SceneFlags scene;
   ReportPaths paths;
-  std::string strategy = "trajectory";
+  std::string strategy = "restitution";
   std::vector<std::string> free;
   std::vector<std::string> fix;
-  bool use_drop = false;
-  std::string channel = "auto";
+  bool ignore_drop = false;
+  DetectFlags detect;
   int jobs = 1;
   bool quiet = false;
   // Points of the fitted e(v) curve and band in the report (CalibrationOptions::e_of_v_points):
@@ -88,8 +89,8 @@ FitStage Fit(const std::vector<ReportRecording>& recordings, const Scene& scene,
   }
   const Calibration* best = out.best();
   if (!out.error && best != nullptr && best->outcome != FitOutcome::kConverged) {
-    out.error = Error(ErrorCode::kFitFailed,
-                      std::string("fit ") + FitOutcomeName(best->outcome) + ": " + best->message);
+    out.error = Error(FitOutcomeExitCode(best->outcome),
+                      std::string("fit ") + FitOutcomeName(best->outcome) + ": " + best->reason);
   }
   return out;
 }
@@ -102,7 +103,6 @@ void Run(const ReportArgs& a) {
   opts.strategy = ParseFitStrategy(a.strategy);
   opts.free_parameters = a.free;
   opts.fixed_parameters = a.fix;
-  opts.use_drop = a.use_drop;
   opts.e_of_v_points = a.e_of_v_points;
   std::string why;
   if (!opts.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
@@ -112,15 +112,20 @@ void Run(const ReportArgs& a) {
   const bool all = a.scene.law == "all";
   SceneFlags sf = a.scene;
   if (all) sf.law.clear();
-  const Scene scene = ResolveScene(sf);
+  const GivenScene gs = ResolveGivenScene(sf);
+  const Scene& scene = gs.scene;
+  // As calibrate: the stated drop is used unless --ignore-drop; no drag check when the user
+  // chose the drag.
+  opts.use_drop = gs.drop_given && !a.ignore_drop;
+  opts.analysis = ReportAnalysisOptions(gs);
+  if (!opts.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
-  DetectOptions detect;
-  detect.channel = ParseChannelSelection(a.channel);
+  const DetectOptions detect = MakeDetectOptions(a.detect);
   CheckReportPaths(a.paths, a.files);
 
   Progress progress(a.quiet);
   std::vector<ReportRecording> recordings =
-      LoadRecordings(a.files, detect, scene, DropGiven(a.scene), &progress);
+      LoadRecordings(a.files, detect, scene, ReportAnalysisOptions(gs), &progress);
   const FitStage fit = Fit(recordings, scene, opts, all, a.jobs, &progress);
 
   std::vector<std::string> no_impacts;
@@ -182,9 +187,9 @@ void RegisterReport(CLI::App& app) {
       ->allow_extra_args(false);
   sub->add_option("--fix", args->fix, "hold this damping parameter at its scene value")
       ->allow_extra_args(false);
-  sub->add_flag("--use-drop", args->use_drop,
-                "hold the first impact speed at the scene's drop instead of fitting it");
-  sub->add_option("--channel", args->channel, "channel: 0, 1, ..., mix or auto");
+  sub->add_flag("--ignore-drop", args->ignore_drop,
+                "do not use the scene's drop height/speed for the first impact (as calibrate)");
+  AddDetectFlags(sub, &args->detect);
   sub->add_option("--jobs", args->jobs, "worker threads (--law all)");
   sub->callback([args, sub]() {
     args->argv.clear();

@@ -33,16 +33,16 @@ std::string CommandLine(const std::string& command, const std::vector<std::strin
   return out;
 }
 
-bool DropGiven(const SceneFlags& flags) {
-  return !flags.scene_file.empty() || flags.height_m.has_value() ||
-         flags.impact_speed_m_s.has_value();
+AnalysisOptions ReportAnalysisOptions(const GivenScene& gs) {
+  AnalysisOptions o;
+  o.use_drop = gs.drop_given;
+  o.check_drag = !gs.Given("effects.drag") && gs.ball_given;
+  return o;
 }
 
 std::vector<ReportRecording> LoadRecordings(const std::vector<std::string>& files,
                                             const DetectOptions& detect, const Scene& scene,
-                                            bool use_drop, Progress* progress) {
-  AnalysisOptions analysis;
-  analysis.use_drop = use_drop;
+                                            const AnalysisOptions& analysis, Progress* progress) {
   std::vector<ReportRecording> out;
   for (size_t i = 0; i < files.size(); ++i) {
     if (progress != nullptr) {
@@ -80,10 +80,10 @@ void WriteReportOutputs(const ReportPaths& paths, std::vector<ReportRecording> r
 }
 
 void WriteReports(const ReportPaths& paths, const std::vector<std::string>& files,
-                  const DetectOptions& detect, const Scene& scene, bool use_drop,
+                  const DetectOptions& detect, const Scene& scene, const AnalysisOptions& analysis,
                   const ReportResults& results, Progress* progress) {
   if (!paths.any()) return;
-  WriteReportOutputs(paths, LoadRecordings(files, detect, scene, use_drop, progress), results,
+  WriteReportOutputs(paths, LoadRecordings(files, detect, scene, analysis, progress), results,
                      progress);
 }
 

@@ -32,9 +32,9 @@ void CheckReportPaths(const ReportPaths& paths, const std::vector<std::string>& 
 // The command line as one string, for the provenance block.
 std::string CommandLine(const std::string& command, const std::vector<std::string>& args);
 
-// Whether the user gave the drop (scene file, --height or --impact-speed): the first impact's e
-// is computed only then (as in `analyze`).
-bool DropGiven(const SceneFlags& flags);
+// The analysis options of `analyze` for this scene: the first impact's e only when the user gave
+// the drop; the drag check only when the user gave the ball and left the drag open.
+AnalysisOptions ReportAnalysisOptions(const GivenScene& gs);
 
 // What one report needs besides the recordings (read and detected again here: the fit keeps
 // only the main sequences).
@@ -50,7 +50,7 @@ struct ReportResults {
 // Reads and detects every file for the report (a recording without impacts keeps its reason).
 std::vector<ReportRecording> LoadRecordings(const std::vector<std::string>& files,
                                             const DetectOptions& detect, const Scene& scene,
-                                            bool use_drop, Progress* progress);
+                                            const AnalysisOptions& analysis, Progress* progress);
 
 // Builds the report object and writes the requested outputs.
 void WriteReportOutputs(const ReportPaths& paths, std::vector<ReportRecording> recordings,
@@ -59,7 +59,7 @@ void WriteReportOutputs(const ReportPaths& paths, std::vector<ReportRecording> r
 // LoadRecordings + WriteReportOutputs, for `calibrate --report` (its fit keeps only the main
 // sequences, so the recordings are read and detected again).
 void WriteReports(const ReportPaths& paths, const std::vector<std::string>& files,
-                  const DetectOptions& detect, const Scene& scene, bool use_drop,
+                  const DetectOptions& detect, const Scene& scene, const AnalysisOptions& analysis,
                   const ReportResults& results, Progress* progress);
 
 }  // namespace bouncecal::cli

@@ -2,6 +2,7 @@
 // (bounce_screen.hpp).
 #include "bouncecal/fit/bounce_screen.hpp"
 
+#include <cstdarg>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -15,9 +16,13 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string Fmt(const char* format, double a, double b = 0.0, double c = 0.0, double d = 0.0) {
+// printf into a std::string; the format attribute lets the compiler check every call.
+__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, format, a, b, c, d);
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
   return buf;
 }
 
@@ -232,7 +237,7 @@ void ScreenBounces(const Scene& scene, const AnalysisOptions& options, Analysis*
              (z > 0 ? "below" : "above") +
              Fmt(" the smooth e(v) of the other bounces (%.4f, scatter %.2g)",
                  p.e + curve.residual[static_cast<size_t>(k)], curve.scatter.sigma) +
-             Fmt("; beyond %.1f sigma for %.0f bounces: a mis-tracked impact or an irregular "
+             Fmt("; beyond %.1f sigma for %d bounces: a mis-tracked impact or an irregular "
                  "bounce, left out of fits",
                  z_max, n),
          p.bounce});
@@ -287,8 +292,9 @@ void CheckDrag(const Sequence& sequence, const Scene& scene, const AnalysisOptio
        Fmt("the scene has no air drag, but this ball (%.3g m, %.3g kg) has a terminal speed of "
            "%.3g m/s and arrives at up to %.3g m/s: ",
            scene.ball.diameter_m, scene.ball.Mass(), vt, v_max) +
-           Fmt("quadratic drag changes e by up to %.2g (impact %d: %.4f -> %.4f), ", effect, at,
-               a->bounces[static_cast<size_t>(at)].e, d.bounces[static_cast<size_t>(at)].e) +
+           Fmt("quadratic drag changes e by up to %.2g (impact %d: %.4f -> %.4f), ", effect,
+               a->bounces[static_cast<size_t>(at)].index, a->bounces[static_cast<size_t>(at)].e,
+               d.bounces[static_cast<size_t>(at)].e) +
            Fmt("%.0f times its timing sigma; turn it on (effects.drag = \"quadratic\")",
                effect / median_sigma),
        -1});

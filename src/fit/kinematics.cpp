@@ -21,6 +21,7 @@
 // on the impact speed (tau ~ v^-1/5) is left out of the Jacobian.
 #include "bouncecal/fit/kinematics.hpp"
 
+#include <cstdarg>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -37,9 +38,13 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string Fmt(const char* format, double a, double b = 0.0) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, format, a, b);
+// printf into a std::string; the format attribute lets the compiler check every call.
+__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
+  char buf[256];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
   return buf;
 }
 

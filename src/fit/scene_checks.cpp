@@ -1,6 +1,7 @@
 // Scene values in a probably wrong unit (scene_checks.hpp).
 #include "bouncecal/fit/scene_checks.hpp"
 
+#include <cstdarg>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -14,9 +15,13 @@ constexpr double kMaxHeightM = 50.0;
 constexpr double kMinDensity = 10.0, kMaxDensity = 25000.0;
 constexpr double kMinG = 1.0, kMaxG = 30.0;
 
-std::string Fmt(const char* f, double a, double b = 0.0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, f, a, b);
+// printf into a std::string; the format attribute lets the compiler check every call.
+__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
+  char buf[256];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
   return buf;
 }
 

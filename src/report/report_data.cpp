@@ -201,15 +201,28 @@ json RecordingJson(const ReportRecording& r, const Calibration* c,
 }
 
 // Energy ledger of the fitted law: the scene with the fitted parameters, started at the first
-// recording's fitted first impact speed and time origin (trajectory fits), else at its drop.
-json EnergyJson(const Calibration& c) {
+// recording's fitted first impact speed and time origin (trajectory fits), else at its first
+// measured arrival speed (restitution fits), else at its drop; null when none is known.
+json EnergyJson(const Calibration& c, const ReportRecording* first) {
   Scene scene = c.scene;
+  auto start_at = [&](double v_m_s, double t_s) {
+    scene.drop.height_m.reset();
+    scene.drop.height_sigma_m.reset();
+    scene.drop.impact_speed_m_s = v_m_s;
+    scene.drop.first_impact_time_s = t_s;
+  };
   if (!c.recordings.empty() && std::isfinite(c.recordings[0].impact_speed_m_s) &&
       c.recordings[0].impact_speed_m_s > 0) {
-    scene.drop.height_m.reset();
-    scene.drop.impact_speed_m_s = c.recordings[0].impact_speed_m_s;
-    scene.drop.first_impact_time_s = c.recordings[0].time_origin_s;
+    start_at(c.recordings[0].impact_speed_m_s, c.recordings[0].time_origin_s);
+  } else if (first != nullptr && first->analysis) {
+    for (const Bounce& b : first->analysis->bounces) {
+      if (std::isfinite(b.v_in_m_s) && b.v_in_m_s > 0) {
+        start_at(b.v_in_m_s, b.time_s);
+        break;
+      }
+    }
   }
+  if (!scene.drop.height_m && !scene.drop.impact_speed_m_s) return json();
   const auto law = CreateLaw(scene.law, scene);
   const Simulation sim = Simulate(scene, *law, law->ParameterValues(), SimulatorOptions{});
   const double m = scene.ball.Mass();
@@ -406,7 +419,8 @@ nlohmann::json ReportDataJson(const ReportInput& input, const ReportDataOptions&
   j["fit_failure"] = input.fit_failure.empty() ? json() : json(input.fit_failure);
   j["law_comparison"] =
       input.law_comparison ? LawComparisonJson(*input.law_comparison) : json::array();
-  j["energy"] = c != nullptr && c->outcome != FitOutcome::kFailed ? EnergyJson(*c) : json();
+  j["energy"] = c != nullptr && c->outcome != FitOutcome::kFailed ? EnergyJson(*c, input.recordings.empty() ? nullptr : &input.recordings.front())
+                  : json();
   j["provenance"] = ProvenanceJson(input);
   return j;
 }

@@ -3,7 +3,7 @@
 // Notation: onsets t_0 < t_1 < ... (sigma s_k each, independent), interval I_k = t_{k+1} - t_k,
 // contact duration tau_k of impact k (0 unless the scene's contact_duration effect is on),
 // flight time T_k = I_k - tau_k (the ball leaves the plate tau_k after the onset and touches it
-// again at the next onset). With the scene's flight model F (flight.hpp, PHYSICS.md §2):
+// again at the next onset). With the scene's flight model F (flight.hpp, docs/physics.md §2):
 //   v_out,k   = F^-1(T_k)                       (exact inversion of the flight time)
 //   v_in,k+1  = A(v_out,k)                      (arrival speed after that flight)
 //   e_k = v_out,k / v_in,k,   eta_k = 1 - e_k^2 (seed 002 eqs. 11-12)
@@ -98,7 +98,7 @@ double HertzContactTime(const Scene& scene, double impact_speed_m_s) {
   }
   const double r_star = scene.ball.Radius();
   const double v = std::max(impact_speed_m_s, 1e-12);
-  // tau = 2.94 delta_max / v = 2.87 (m*^2 / (R* E*^2 v))^(1/5)  (PHYSICS.md §2; Johnson,
+  // tau = 2.94 delta_max / v = 2.87 (m*^2 / (R* E*^2 v))^(1/5)  (docs/physics.md §2; Johnson,
   // Contact Mechanics, 1985, §11.4).
   return 2.87 * std::pow(m_star * m_star / (r_star * e_star * e_star * v), 0.2);
 }

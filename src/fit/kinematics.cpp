@@ -27,6 +27,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <optional>
 #include <string>
 
 #include "bouncecal/core/error.hpp"
@@ -73,24 +74,15 @@ bool AnalysisOptions::IsValid(std::string* error) const {
 }
 
 double HertzContactTime(const Scene& scene, double impact_speed_m_s) {
-  const double e1 = scene.ball.ResolvedYoungsModulusPa();
-  const double nu1 = scene.ball.ResolvedPoissonRatio();
-  const double e2 = scene.surface.ResolvedYoungsModulusPa();
-  const double nu2 = scene.surface.ResolvedPoissonRatio();
-  if (!std::isfinite(e1) || !std::isfinite(nu1)) {
-    throw Error(ErrorCode::kBadScene,
-                (scene.source.empty() ? "" : scene.source + ": ") +
-                    "ball.youngs_modulus_pa/poisson_ratio: unknown for material \"" +
-                    scene.ball.material + "\" (needed for the Hertz contact duration)");
+  // Effective modulus (the one rule: EffectiveModulusPa, scene.hpp) and mass (Johnson, Contact
+  // Mechanics, 1985, §4.2 and §11.4).
+  std::string why;
+  const std::optional<double> e_star_pa = EffectiveModulusPa(scene, &why);
+  if (!e_star_pa) {
+    throw Error(ErrorCode::kBadScene, (scene.source.empty() ? "" : scene.source + ": ") + why +
+                                          " (needed for the Hertz contact duration)");
   }
-  if (!std::isfinite(e2) || !std::isfinite(nu2)) {
-    throw Error(ErrorCode::kBadScene,
-                (scene.source.empty() ? "" : scene.source + ": ") +
-                    "surface.youngs_modulus_pa/poisson_ratio: unknown for material \"" +
-                    scene.surface.material + "\" (needed for the Hertz contact duration)");
-  }
-  // Effective modulus and mass (Johnson, Contact Mechanics, 1985, §4.2 and §11.4).
-  const double e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
+  const double e_star = *e_star_pa;
   const double m = scene.ball.Mass();
   double m_star = m;
   if (scene.effects.surface_compliance && scene.surface.mass_kg > 0.0) {

@@ -287,7 +287,7 @@ void CheckDrag(const Sequence& sequence, const Scene& scene, const AnalysisOptio
        Fmt("the scene has no air drag, but this ball (%.3g m, %.3g kg) has a terminal speed of "
            "%.3g m/s and arrives at up to %.3g m/s: ",
            scene.ball.diameter_m, scene.ball.Mass(), vt, v_max) +
-           Fmt("quadratic drag changes e by up to %.2g (impact %d: %.4f -> %.4f), ", effect, at,
+           Fmt("quadratic drag changes e by up to %.2g (impact %.0f: %.4f -> %.4f), ", effect, at,
                a->bounces[static_cast<size_t>(at)].e, d.bounces[static_cast<size_t>(at)].e) +
            Fmt("%.0f times its timing sigma; turn it on (effects.drag = \"quadratic\")",
                effect / median_sigma),

@@ -63,25 +63,27 @@
 namespace bouncecal {
 
 struct TimingOptions {
-  int lpc_order = 48;            // predictor order (0: no whitening)
-  double fit_before_s = 0.02;    // predictor window: this long before each member's onset ...
-  double fit_after_s = 0.01;     // ... to this long after it
-  double template_s = 0.0015;    // template length
-  double lead_s = 1e-4;          // the template starts this long before its onset
-  double search_s = 3e-4;        // lag search: +- this around the detection's time
-  double far_search_s = 1.5e-3;  // rivals for the ambiguity term: +- this around it
-  double aic_pre_s = 0.002;      // AIC window before / after the detection's time
+  int lpc_order = 48;          // predictor order (0: no whitening)
+  double fit_before_s = 0.02;  // predictor window: this long before each member's onset ...
+  double fit_after_s = 0.01;   // ... to this long after it
+  double template_s = 0.0015;  // template length
+  double lead_s = 1e-4;        // the template starts this long before its onset
+  double search_s = 3e-4;      // lag search: +- this around the detection's time
+  double aic_pre_s = 0.002;    // AIC window before / after the detection's time
   double aic_post_s = 0.0008;
   double noise_window_s = 0.02;   // SNR: noise floor from this long before the onset ...
   double noise_guard_s = 0.001;   // ... ending this long before it
   double signal_window_s = 5e-4;  // SNR: signal rms over this long after the onset
   double level_window_s = 0.003;  // Impact::amplitude: peak |x| over this long after the onset
-  double min_template_ncc = 0.2;  // below: AIC timing (sigma: the AIC window, uniform)
+  double min_template_ncc = 0.2;  // below: AIC timing (sigma: see the cycle-slip model)
   // Sigma model constants, calibrated against exact truth on the six synthetic presets x 8 seeds
   // (tools/bench_detect --quick --seeds 8 --dump, a grid search minimising the largest
   // |log RMS(err/sigma)| over the presets): RMS(err/sigma) 0.81-1.18 on every preset.
   double noise_gain = 0.6;  // the robust projected-noise spread overstates the noise
+  // Cycle slips: the EM fit's starting share of slipped members, and the gain on the slip term.
   double ambiguity_gain = 1.5;
+  double slip_prior = 0.1;
+  double slip_gain = 1.0;
   double shape_s_per_neper = 3e-6;  // s per neper of level difference to the template
   double resolution_samples = 0.0;
   double resolution_s = 2e-6;
@@ -96,6 +98,8 @@ struct TimingDetail {
   double sigma_noise = 0.0;  // model parts, samples
   double sigma_resolution = 0.0;
   double sigma_ambiguity = 0.0;
+  double sigma_slip = 0.0;    // cycle-slip term (template members) / slip share (AIC members)
+  double aic_residual = 0.0;  // own AIC pick - final time - the sequence's mean (samples)
   double sigma_shape = 0.0;
   double level_ratio = 1.0;  // the member's amplitude relative to the template (fitted scale)
   double noise_rms = 0.0;    // local whitened noise floor
@@ -105,6 +109,9 @@ struct TimingResult {
   int template_member = -1;          // index in the sequence of the template impact
   std::vector<double> predictor;     // a[0..order], a[0] = 1
   std::vector<TimingDetail> detail;  // one per member
+  double aic_sigma_samples = 0.0;    // fitted scatter of the AIC picks about the template's (0:
+                                     // too few members to fit)
+  double slip_prior = 0.0;           // fitted share of cycle slips
 };
 
 // Times every member of *sequence in place (time_s, sigma_s, amplitude, snr_db, score) from the

@@ -98,8 +98,11 @@ struct TimingDetail {
   double sigma_noise = 0.0;  // model parts, samples
   double sigma_resolution = 0.0;
   double sigma_ambiguity = 0.0;
-  double sigma_slip = 0.0;    // cycle-slip term (template members) / slip share (AIC members)
-  double aic_residual = 0.0;  // own AIC pick - final time - the sequence's mean (samples)
+  double sigma_slip = 0.0;      // cycle-slip term (template members) / slip share (AIC members)
+  double aic_residual = 0.0;    // own AIC pick - final time - the sequence's mean (samples)
+  double ncc_at_aic = -2.0;     // best NCC with the template near the AIC's lag (-2: not measured)
+  double slip_q = 0.0;          // probability the template matches at least as well there
+  double slip_posterior = 0.0;  // P(slip | aic_residual) of the sequence's slip mixture
   double sigma_shape = 0.0;
   double level_ratio = 1.0;  // the member's amplitude relative to the template (fitted scale)
   double noise_rms = 0.0;    // local whitened noise floor
@@ -112,6 +115,8 @@ struct TimingResult {
   double aic_sigma_samples = 0.0;    // fitted scatter of the AIC picks about the template's (0:
                                      // too few members to fit)
   double slip_prior = 0.0;           // fitted share of cycle slips
+  double shape_mismatch = 0.0;       // W: median share of a member's energy the template and the
+                                     // noise leave unexplained (0: shapes match)
 };
 
 // Times every member of *sequence in place (time_s, sigma_s, amplitude, snr_db, score) from the

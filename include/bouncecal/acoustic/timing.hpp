@@ -35,18 +35,35 @@
 //              proportional to |ln a| (a: the member's amplitude relative to the template):
 //              shape_s_per_neper |ln a|. (A residual-energy mismatch term, |y - a h|^2 spread over
 //              the template, was tried: its calibrated gain was 0 once this term was in.)
-//   ambiguity: a rival correlation peak outside the chosen one's main lobe, within the NCC's noise
-//              (s_c = spread(<n, h>) / (|h| |y|), measured like the noise term) of it, wins with
-//              probability
-//              p = erfc((c1 - c2) / (2 s_c)) / 2 and then moves the time by the lag difference
-//              dl: sqrt(p) |dl|, times ambiguity_gain;
+//   ambiguity: a rival correlation peak inside the lag search window, outside the chosen one's
+//              main lobe, within the NCC's noise (s_c = spread(<n, h>) / (|h| |y|), measured like
+//              the noise term) of it, wins with probability p = erfc((c1 - c2) / (2 s_c)) / 2
+//              and then moves the time by the lag difference dl: sqrt(p) |dl|, times
+//              ambiguity_gain;
+//   cycle slip: r = (member's own AIC pick) - (final time) over the template-timed members is
+//              fitted by EM as a Gaussian (the AIC's own scatter, sigma_aic) plus a uniform over
+//              the AIC window (one of the two slipped by a ringing period). A member gains
+//              q P(slip | r) (r - mu)^2, where q is the probability that the template matches
+//              at least as well at the AIC's position (best NCC c_alt within sigma_aic of it)
+//              as at the chosen lag: q = erfc((c - c_alt) / (2 s)) / 2 with
+//              s = hypot(s_c, s_shape). s_shape is the shape mismatch measured on the sequence:
+//              W = median over members of max(0, 1 - ncc^2 - E_n / |y|^2) (the share of a
+//              member's energy neither the template nor the noise explains; E_n = L noise_rms^2),
+//              taken to project on the template as the local noise does:
+//              s_shape = s_c sqrt(W |y|^2 / E_n). Well-matched sequences (steel, W ~ 0.03) keep
+//              the gate shut, so the AIC's own jumps on earlier ringing do not count; poorly
+//              matched ones (superball, ping-pong: W ~ 0.8) count a slip the AIC points to with
+//              q up to 1/2 when the two NCCs are within s of each other. The time is not moved
+//              (which of the two slipped is not decided by these measures), only sigma grows;
 //   resolution: resolution_s (and resolution_samples): interpolation of the correlation peak;
 //   template member: its lag to itself is exact, but it is one of the shapes the others are
 //              matched to, and the sequence's offset rests on the others' lags: its sigma is at
 //              least hypot(median of the others' sigma without ambiguity, 1.25 x median of their
 //              sigma / sqrt(n)) (the median's standard error);
-//   AIC-timed members (no template match): the AIC window's width / sqrt(12) (the pick can land
-//              anywhere in it), times aic_sigma_gain.
+//   AIC-timed members (no template match): hypot(sigma_aic, the pick's change-point posterior
+//              spread) plus the fitted slip share of the window's uniform variance (width^2/12);
+//              with too few template-timed members to fit sigma_aic: the AIC window's width /
+//              sqrt(12) (the pick can land anywhere in it), times aic_sigma_gain.
 //
 //   TimingResult t = TimeSequence(samples, rate_hz, &sequence, TimingOptions{});
 //

@@ -97,7 +97,7 @@ TEST(CalibrateCli, JsonIsTheParameterFileObjectAndOutputRules) {
   const CliRun r = Exec("calibrate " + kWithScene + " --json -o " + out);
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j.at("schema"), "bouncecal.params/1");
+  EXPECT_EQ(j.at("schema"), "bouncecal.params/2");
   EXPECT_EQ(j.at("law"), "hertz-viscoelastic");  // the law of the scene file
   EXPECT_NEAR(j.at("parameters").at("A").at("value").get<double>(), TrueA(), 1e-4 * TrueA());
   EXPECT_EQ(j.at("fit").at("outcome"), "converged");

@@ -40,6 +40,8 @@ inline constexpr const char* kCalibrationRowSchema = "bouncecal.calibration_row/
 inline constexpr const char* kLawComparisonSchema = "bouncecal.law_comparison/2";
 inline constexpr const char* kSynthSchema = "bouncecal.synth/1";
 inline constexpr const char* kErrorSchema = "bouncecal.error/1";
+// `export --json` and DIR/mapping.json (built in the export wing: ExportResultJson).
+inline constexpr const char* kExportSchema = "bouncecal.export/2";
 
 // ---- building blocks -------------------------------------------------------------------
 

@@ -121,7 +121,7 @@ std::string CsvRow(const std::string& file, const std::vector<ParameterSpec>& sp
                    const Calibration* c, const Error* err) {
   std::string row = CsvField(file) + ",";
   if (err) {
-    row += "error," + CsvField(err->what()) + ",,,";
+    row += std::string(ErrorCodeName(err->code())) + "," + CsvField(err->what()) + ",,,";
     for (size_t i = 0; i < specs.size(); ++i) row += ",,";
     return row + ",,,,,,";
   }

@@ -73,7 +73,7 @@ TEST(AnalyzeCli, ASceneWithoutDropMeansTheDropIsUnknown) {
   const auto r = Analyze("--scene " + dir / "nodrop.toml" + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  EXPECT_TRUE(j.at("scene").at("drop_height_m").is_null());
+  EXPECT_TRUE(j.at("scene").at("drop").at("height_m").is_null());
   EXPECT_TRUE(j.at("summary").at("first_e").is_null());
   EXPECT_TRUE(j.at("bounces")[0].at("e").is_null());
   const auto human = Analyze("--scene " + dir / "nodrop.toml");

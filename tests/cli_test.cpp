@@ -204,10 +204,11 @@ TEST_F(CliTest, AnalyzeJsonContract) {
   }
   EXPECT_EQ(j["file"], P("good.wav"));
   EXPECT_EQ(j["sample_rate_hz"], 48000.0);
+  EXPECT_EQ(j["schema"], "bouncecal.analysis/1");
   for (const char* key : {"drag", "buoyancy", "contact_duration", "surface_compliance"}) {
-    EXPECT_TRUE(j["scene"].contains(key)) << key;
+    EXPECT_TRUE(j["scene"]["effects"].contains(key)) << key;
   }
-  EXPECT_EQ(j["scene"]["drag"], "none");
+  EXPECT_EQ(j["scene"]["effects"]["drag"], "none");
   ASSERT_GE(j["bounces"].size(), 3u);
   for (const auto& b : j["bounces"]) {
     for (const char* key :
@@ -238,7 +239,7 @@ TEST_F(CliTest, AnalyzeJsonContract) {
   const RunResult sc =
       Run("analyze " + Quote(P("good.wav")) + " --json --scene " + Quote(P("good.toml")));
   ASSERT_EQ(sc.exit_code, 0) << sc.err;
-  EXPECT_EQ(nlohmann::json::parse(sc.out)["scene"]["drag"], "quadratic");
+  EXPECT_EQ(nlohmann::json::parse(sc.out)["scene"]["effects"]["drag"], "quadratic");
 }
 
 TEST_F(CliTest, SceneFlagsReachTheAnalysis) {
@@ -247,27 +248,28 @@ TEST_F(CliTest, SceneFlagsReachTheAnalysis) {
                     " --json --material glass --diameter 0.02 --buoyancy --drag linear --g 9.81");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   nlohmann::json s = nlohmann::json::parse(r.out)["scene"];
-  EXPECT_EQ(s["drag"], "linear");
-  EXPECT_EQ(s["buoyancy"], true);
+  const nlohmann::json summary = nlohmann::json::parse(r.out)["summary"];
+  EXPECT_EQ(s["effects"]["drag"], "linear");
+  EXPECT_EQ(s["effects"]["buoyancy"], true);
   EXPECT_EQ(s["ball"]["material"], "glass");
   EXPECT_EQ(s["ball"]["density_kg_m3"], 2500.0);
   EXPECT_EQ(s["ball"]["diameter_m"], 0.02);
-  EXPECT_NEAR(s["effective_gravity_m_s2"].get<double>(), 9.81 * (1 - 1.2 / 2500), 1e-12);
-  EXPECT_TRUE(s["terminal_speed_m_s"].is_number());
+  EXPECT_NEAR(summary["effective_gravity_m_s2"].get<double>(), 9.81 * (1 - 1.2 / 2500), 1e-12);
+  EXPECT_TRUE(summary["terminal_speed_m_s"].is_number());
   // --mass replaces the file's density; flags override the scene file.
   r = Run("analyze " + good + " --json --scene " + Quote(P("good.toml")) +
           " --mass 0.01 --impact-speed 1.5");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   s = nlohmann::json::parse(r.out)["scene"];
   EXPECT_EQ(s["ball"]["mass_kg"], 0.01);
-  EXPECT_EQ(s["drag"], "quadratic");  // from the file
-  EXPECT_TRUE(s["drop_height_m"].is_null());
-  EXPECT_EQ(s["impact_speed_m_s"], 1.5);
+  EXPECT_EQ(s["effects"]["drag"], "quadratic");  // from the file
+  EXPECT_TRUE(s["drop"]["height_m"].is_null());
+  EXPECT_EQ(s["drop"]["impact_speed_m_s"], 1.5);
   // A fixed contact time turns the contact-duration effect on and is reported per bounce.
   r = Run("analyze " + good + " --json --contact-time 0.0001");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j["scene"]["contact_duration"], true);
+  EXPECT_EQ(j["scene"]["effects"]["contact_duration"], true);
   EXPECT_EQ(j["bounces"][0]["contact_s"], 0.0001);
 }
 
@@ -292,12 +294,12 @@ TEST_F(CliTest, AnalyzeCsvAndTable) {
   std::string header;
   std::getline(lines, header);
   EXPECT_EQ(header,
-            "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
+            "sequence,index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
             "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular");
   size_t rows = 0;
   for (std::string line; std::getline(lines, line);) {
     ++rows;
-    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 14) << line;
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 15) << line;
   }
   EXPECT_EQ(rows, n);
   const RunResult table = Run("analyze " + Quote(P("good.wav")) + " --height 0.2");

@@ -195,7 +195,7 @@ TEST_F(DetectCli, JsonCsvAndTable) {
   EXPECT_EQ(doc["channels"].get<int>(), 1);
   ASSERT_TRUE(doc["impacts"].is_array());
   ASSERT_GE(doc["impacts"].size(), 10u);
-  for (const char* key : {"time_s", "sigma_s", "amplitude", "snr_db", "score"})
+  for (const char* key : {"time_s", "time_sigma_s", "amplitude", "snr_db", "score"})
     EXPECT_TRUE(doc["impacts"][0].contains(key)) << key;
   ASSERT_GE(doc["sequences"].size(), 1u);
   EXPECT_TRUE(doc["sequences"][0].contains("end_reason"));

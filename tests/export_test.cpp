@@ -60,7 +60,7 @@ std::string WriteFit(const ScratchDir& dir, const std::string& law,
   prov.bouncecal_version = "test";
   prov.date_utc = "2026-01-01T00:00:00Z";
   const std::string path = dir / name;
-  WriteParamFile(path, ParamFileJson(c, prov, OptionsJson(CalibrationOptions{})), {});
+  WriteParamFile(path, CalibrationJson(c, prov, OptionsJson(CalibrationOptions{})), {});
   return path;
 }
 
@@ -285,7 +285,7 @@ TEST(ParamResolved, FileCarriesEveryPhysicalValueAndReplaysIt) {
   EXPECT_NEAR(res["drop"]["impact_speed_m_s"].get<double>(),
               j["recordings"][0]["impact_speed_m_s"].get<double>(), 1e-15);
   // Contact time at the measured speeds: the seed law's closed form (two half periods).
-  const double g = j["parameters"]["gamma"]["value"].get<double>(), k = 1e7;
+  const double g = j["law"]["parameters"]["gamma"]["value"].get<double>(), k = 1e7;
   const double tc = 0.5 * M_PI * (std::sqrt(m / ((1 + g) * k)) + std::sqrt(m / ((1 - g) * k)));
   ASSERT_EQ(res["contacts"].size(), j["e_of_v"].size());
   for (const json& c : res["contacts"]) {
@@ -311,8 +311,8 @@ TEST(ParamResolved, SimulateParamsReplaysTheFitAsExplicitFlagsWould) {
   char v0[64];
   std::snprintf(v0, sizeof v0, "%.17g", j["recordings"][0]["impact_speed_m_s"].get<double>());
   char e[64], k[64];
-  std::snprintf(e, sizeof e, "%.17g", j["parameters"]["e"]["value"].get<double>());
-  std::snprintf(k, sizeof k, "%.17g", j["parameters"]["k"]["value"].get<double>());
+  std::snprintf(e, sizeof e, "%.17g", j["law"]["parameters"]["e"]["value"].get<double>());
+  std::snprintf(k, sizeof k, "%.17g", j["law"]["parameters"]["k"]["value"].get<double>());
   const CommandResult b =
       RunCommand(kBin, std::string("simulate --law hertz-tsuji --set e=") + e + " --set k=" + k +
                            " --impact-speed " + v0 + " --json --max-impacts 5");
@@ -341,12 +341,12 @@ TEST(ExportCli, RefusesNewerAndUnknownSchemas) {
   ScratchDir dir;
   const std::string params = WriteFit(dir, "walton-braun", {{"gamma", 0.3}}, "wb.json");
   json j = Load(params);
-  j["schema"] = "bouncecal.params/2";
+  j["schema"] = "bouncecal.params/3";
   Save(dir / "newer.json", j);
   CommandResult r =
       RunCommand(kBin, "export " + (dir / "newer.json") + " --to lammps -o " + (dir / "o1"));
   EXPECT_EQ(r.exit_code, 9);
-  EXPECT_NE(r.err.find("'bouncecal.params/2' is newer than this bouncecal reads"),
+  EXPECT_NE(r.err.find("'bouncecal.params/3' is newer than this bouncecal reads"),
             std::string::npos)
       << r.err;
   j["schema"] = "other.format/1";

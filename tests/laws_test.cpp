@@ -603,7 +603,7 @@ TEST(LawsCli, JsonListsEveryRegisteredLawWithStableKeys) {
       EXPECT_TRUE(law.contains(key)) << info.name << " lacks " << key;
     }
     for (const nlohmann::json& p : law.at("parameters")) {
-      for (const char* key : {"name", "unit", "lower", "upper", "default", "damping"}) {
+      for (const char* key : {"value", "unit", "lower", "upper", "damping", "description"}) {
         EXPECT_TRUE(p.contains(key)) << info.name << " parameter lacks " << key;
       }
     }

@@ -1,4 +1,4 @@
-// Parameter file (schema bouncecal.params/1) and provenance: keys and types, null sigmas,
+// Parameter file (schema bouncecal.params/2) and provenance: keys and types, null sigmas,
 // write/read round trip, atomic writing, refusal to overwrite inputs or existing files,
 // --force, missing directories, malformed files; SHA-256 against published test vectors.
 #include <gtest/gtest.h>
@@ -106,16 +106,16 @@ TEST(ParamFile, SchemaKeysAndTypes) {
   prov.inputs = {{"drop.wav", Sha256OfString("x")}};
   prov.bouncecal_version = "9.9.9";
   prov.date_utc = "2026-01-01T00:00:00Z";
-  const json j = ParamFileJson(c, prov, OptionsJson(CalibrationOptions{}));
-  EXPECT_EQ(j.at("schema"), "bouncecal.params/1");
-  EXPECT_EQ(j.at("law"), "walton-braun");
-  const json& gamma = j.at("parameters").at("gamma");
+  const json j = CalibrationJson(c, prov, OptionsJson(CalibrationOptions{}));
+  EXPECT_EQ(j.at("schema"), "bouncecal.params/2");
+  EXPECT_EQ(j.at("law").at("name"), "walton-braun");
+  const json& gamma = j.at("law").at("parameters").at("gamma");
   EXPECT_TRUE(gamma.at("value").is_number());
   EXPECT_TRUE(gamma.at("sigma").is_number());
   EXPECT_EQ(gamma.at("unit"), "1");
   EXPECT_EQ(gamma.at("fixed"), false);
   EXPECT_NEAR(gamma.at("value").get<double>(), 0.408, 1e-4);
-  const json& k = j.at("parameters").at("k");
+  const json& k = j.at("law").at("parameters").at("k");
   EXPECT_EQ(k.at("fixed"), true);
   EXPECT_TRUE(k.at("sigma").is_null());  // held: no sigma, never NaN
   EXPECT_EQ(k.at("unit"), "N/m");
@@ -123,7 +123,7 @@ TEST(ParamFile, SchemaKeysAndTypes) {
   for (const auto& pt : j.at("e_of_v")) {
     EXPECT_TRUE(pt.at("v_m_s").is_number());
     EXPECT_TRUE(pt.at("e").is_number());
-    EXPECT_TRUE(pt.at("sigma").is_number());
+    EXPECT_TRUE(pt.at("e_sigma").is_number());
   }
   // Tabulated over the measured speed range.
   EXPECT_NEAR(j["e_of_v"].front()["v_m_s"].get<double>(), c.v_min_m_s, 1e-12);
@@ -140,23 +140,23 @@ TEST(ParamFile, SchemaKeysAndTypes) {
   EXPECT_TRUE(fit.at("scatter_e").is_number());
   EXPECT_TRUE(j.at("warnings").is_array());
   EXPECT_EQ(fit.at("determined"), json::array({"gamma"}));
-  for (const char* key : {"ball", "surface", "environment", "drop", "effects", "law"}) {
+  for (const char* key : {"source", "ball", "surface", "environment", "drop", "effects"}) {
     EXPECT_TRUE(j.at("scene").contains(key)) << key;
   }
   EXPECT_NEAR(j["scene"]["ball"]["diameter_m"].get<double>(), 0.01, 1e-15);
   EXPECT_EQ(j["scene"]["effects"]["drag"], "none");
   const json& pv = j.at("provenance");
-  EXPECT_EQ(pv.at("inputs")[0].at("path"), "drop.wav");
+  EXPECT_EQ(pv.at("inputs")[0].at("file"), "drop.wav");
   EXPECT_EQ(pv.at("inputs")[0].at("sha256"), Sha256OfString("x"));
   EXPECT_EQ(pv.at("bouncecal_version"), "9.9.9");
   EXPECT_EQ(pv.at("date_utc"), "2026-01-01T00:00:00Z");
   EXPECT_EQ(pv.at("options").at("strategy"), "restitution");  // the options passed in
-  EXPECT_EQ(j.at("recordings")[0].at("path"), "drop.wav");
+  EXPECT_EQ(j.at("recordings")[0].at("file"), "drop.wav");
   EXPECT_TRUE(j.at("recordings")[0].at("time_origin_s").is_number());
   // Restitution fits name their RMS in e.
   Calibration r = c;
   r.strategy = FitStrategy::kRestitution;
-  const json jr = ParamFileJson(r, prov, json::object());
+  const json jr = CalibrationJson(r, prov, json::object());
   EXPECT_TRUE(jr.at("fit").contains("rms_residual_e"));
   EXPECT_FALSE(jr.at("fit").contains("rms_residual_s"));
 }
@@ -164,7 +164,7 @@ TEST(ParamFile, SchemaKeysAndTypes) {
 TEST(ParamFile, WriteReadRoundTripFeedsCreateLaw) {
   TempDir dir;
   const Calibration& c = SampleFit();
-  const json j = ParamFileJson(c, MakeProvenance({}), OptionsJson({}));
+  const json j = CalibrationJson(c, MakeProvenance({}), OptionsJson({}));
   WriteParamFile(dir / "params.json", j, {});
   EXPECT_EQ(dir.Count(), 1u);  // no temporary left behind
   const ParamFile p = ReadParamFile(dir / "params.json");
@@ -184,7 +184,7 @@ TEST(ParamFile, WriteReadRoundTripFeedsCreateLaw) {
 
 TEST(ParamFile, RefusesToOverwriteInputsOrExistingFilesWithoutForce) {
   TempDir dir;
-  const json j = ParamFileJson(SampleFit(), MakeProvenance({}), json::object());
+  const json j = CalibrationJson(SampleFit(), MakeProvenance({}), json::object());
   WriteText(dir / "drop.wav", "RIFF....");
   // The output is one of the inputs: refused even with --force, input untouched.
   for (bool force : {false, true}) {
@@ -242,8 +242,16 @@ TEST(ParamFile, MalformedFilesAreRejectedWithTheKey) {
   expect_bad("not json", "not a JSON object");
   expect_bad("[1,2]", "not a JSON object");
   expect_bad(R"({"law": "walton-braun"})", "schema");
-  expect_bad(R"({"schema": "bouncecal.params/2", "law": "x", "parameters": {}})",
-             "bouncecal.params/2");
+  expect_bad(R"({"schema": "bouncecal.params/3", "law": {"name": "x", "parameters": {}}})",
+             "bouncecal.params/3");
+  expect_bad(R"({"schema": "bouncecal.params/2", "law": "walton-braun"})", "law.name");
+  expect_bad(R"({"schema": "bouncecal.params/2", "law": {"name": "walton-braun"}})",
+             "law.parameters");
+  expect_bad(
+      R"({"schema": "bouncecal.params/2", "law": {"name": "walton-braun",
+          "parameters": {"gamma": {"value": null}}}})",
+      "law.parameters.gamma.value");
+  // Version 1 files (law a name, parameters at the top level) are still read, checked alike.
   expect_bad(R"({"schema": "bouncecal.params/1", "parameters": {}})", "law");
   expect_bad(R"({"schema": "bouncecal.params/1", "law": "walton-braun"})", "parameters");
   expect_bad(

@@ -62,7 +62,7 @@ TEST_P(RealCalibration, NumbersAreBelievable) {
   EXPECT_GT(s, 0.002);
   EXPECT_LT(s, 0.05);
   EXPECT_GT(fit.at("scatter_e_sigma").get<double>(), 0.0);
-  const auto& a = j.at("parameters").at("A");
+  const auto& a = j.at("law").at("parameters").at("A");
   ASSERT_TRUE(a.at("sigma").is_number());
   EXPECT_LT(a.at("sigma").get<double>(), 0.2 * a.at("value").get<double>());
   // The assumed list names what the scene files leave open.

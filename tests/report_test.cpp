@@ -124,14 +124,14 @@ const BundledReport& Bundled() {
 TEST(ReportData, HoldsTheDetectionFitAndLedger) {
   const BundledReport& b = Bundled();
   const nlohmann::json& d = b.data;
-  EXPECT_EQ(d["schema"], "bouncecal.report/1");
+  EXPECT_EQ(d["schema"], "bouncecal.report/2");
   ASSERT_EQ(d["recordings"].size(), 1u);
   const nlohmann::json& rec = d["recordings"][0];
   const auto& main = b.detection.main().impacts;
   ASSERT_EQ(rec["impacts"].size(), main.size());
   for (size_t k = 0; k < main.size(); ++k) {
     EXPECT_EQ(rec["impacts"][k]["time_s"].get<double>(), main[k].time_s);
-    EXPECT_EQ(rec["impacts"][k]["sigma_s"].get<double>(), main[k].sigma_s);
+    EXPECT_EQ(rec["impacts"][k]["time_sigma_s"].get<double>(), main[k].sigma_s);
   }
   // Rejected: candidates that no sequence kept (the guided search adds impacts that are not
   // candidates, so the two lists need not add up to the candidates).
@@ -156,7 +156,7 @@ TEST(ReportData, HoldsTheDetectionFitAndLedger) {
   ASSERT_EQ(rec["intervals"].size(), main.size() - 1);
   EXPECT_DOUBLE_EQ(rec["intervals"][3]["interval_s"].get<double>(),
                    main[4].time_s - main[3].time_s);
-  EXPECT_DOUBLE_EQ(rec["intervals"][3]["sigma_s"].get<double>(),
+  EXPECT_DOUBLE_EQ(rec["intervals"][3]["interval_sigma_s"].get<double>(),
                    std::hypot(main[3].sigma_s, main[4].sigma_s));
   // Residuals: one per impact, the fit's own numbers, weighted by the onset sigmas.
   ASSERT_EQ(rec["residuals"]["values"].size(), b.fit.recordings[0].residuals.size());
@@ -165,8 +165,8 @@ TEST(ReportData, HoldsTheDetectionFitAndLedger) {
             b.fit.recordings[0].residuals[7]);
   EXPECT_EQ(rec["residuals"]["values"][7]["sigma"].get<double>(), main[7].sigma_s);
   // The fit in the parameter file's schema.
-  EXPECT_EQ(d["fit"]["schema"], "bouncecal.params/1");
-  EXPECT_EQ(d["fit"]["parameters"]["A"]["value"].get<double>(), b.fit.parameters[1].value);
+  EXPECT_EQ(d["fit"]["schema"], "bouncecal.params/2");
+  EXPECT_EQ(d["fit"]["law"]["parameters"]["A"]["value"].get<double>(), b.fit.parameters[1].value);
   // Energy ledger: started at the fitted first impact speed on the surface, so the initial
   // energy is 1/2 m v0^2 (m from the scene: 7800 kg/m^3, d = 1 cm), and it balances.
   const nlohmann::json& e = d["energy"];
@@ -184,7 +184,7 @@ TEST(ReportData, HoldsTheDetectionFitAndLedger) {
 
 TEST(ReportHtml, EmbedsTheDataSafelyAndHoldsNoNetworkUrl) {
   nlohmann::json d = Bundled().data;
-  d["recordings"][0]["path"] = "a</script><b>.wav";  // must not end the data element
+  d["recordings"][0]["file"] = "a</script><b>.wav";  // must not end the data element
   const std::string html = RenderHtmlReport(d);
   EXPECT_EQ(html.find("a</script>"), std::string::npos);
   EXPECT_NE(html.find("a\\u003c/script>"), std::string::npos);
@@ -458,11 +458,10 @@ TEST(ReportCli, RefusesAnExistingOutputWithoutForce) {
   EXPECT_EQ(run.exit_code, 11);
   EXPECT_NE(run.err.find("exists; use --force"), std::string::npos) << run.err;
   EXPECT_EQ(Slurp(html), "keep me");
-  const auto forced =
-      RunCommand(BOUNCECAL_BINARY,
-                 "report " + kFlac + " --scene " + kScene + " -o " + html + " --force --quiet");
+  const auto forced = RunCommand(BOUNCECAL_BINARY, "report " + kFlac + " --scene " + kScene +
+                                                       " -o " + html + " --force --quiet");
   EXPECT_EQ(forced.exit_code, 0) << forced.err;
-  EXPECT_NE(Slurp(html).find("bouncecal.report/1"), std::string::npos);
+  EXPECT_NE(Slurp(html).find("bouncecal.report/2"), std::string::npos);
 }
 
 TEST(ReportCli, RefusesUnwritableDirectories) {
@@ -531,8 +530,8 @@ TEST(ReportCli, CalibrateReportCarriesTheFitOfTheParameterFile) {
   const size_t a = page.find(open) + open.size(), b = page.find("</script>", a);
   const nlohmann::json data = nlohmann::json::parse(page.substr(a, b - a));
   const nlohmann::json p = nlohmann::json::parse(Slurp(params));
-  EXPECT_EQ(data["fit"]["parameters"]["A"]["value"], p["parameters"]["A"]["value"]);
-  EXPECT_EQ(data["fit"]["parameters"]["A"]["sigma"], p["parameters"]["A"]["sigma"]);
+  EXPECT_EQ(data["fit"]["law"]["parameters"]["A"]["value"], p["law"]["parameters"]["A"]["value"]);
+  EXPECT_EQ(data["fit"]["law"]["parameters"]["A"]["sigma"], p["law"]["parameters"]["A"]["sigma"]);
   EXPECT_EQ(data["recordings"][0]["impacts"].size(), 52u);
   // An existing report is refused before the fit (and the parameter file is not written).
   const auto again =

@@ -339,7 +339,7 @@ TEST(SimulateCli, JsonHasTheStableKeys) {
   ASSERT_EQ(pclose(pipe), 0) << out;
   const auto j = nlohmann::json::parse(out);
   EXPECT_EQ(j["law"]["name"], "walton-braun");
-  EXPECT_DOUBLE_EQ(j["law"]["parameters"]["gamma"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["law"]["parameters"]["gamma"]["value"].get<double>(), 0.5);
   ASSERT_EQ(j["impacts"].size(), 4u);
   for (const char* key : {"index", "time_s", "v_in_m_s", "v_out_m_s", "e", "contact_s",
                           "peak_overlap_m", "peak_force_n"}) {

@@ -101,7 +101,9 @@ std::vector<RawTime> FromDetectJson(const std::string& path, const nlohmann::jso
         Bad(path, where, "time_s is missing or not a number");
       RawTime r;
       r.t = i["time_s"].get<double>();
-      if (i.contains("sigma_s") && i["sigma_s"].is_number()) r.sigma = i["sigma_s"].get<double>();
+      // time_sigma_s (bouncecal.detect/1; wins), sigma_s in files written before it.
+      for (const char* key : {"sigma_s", "time_sigma_s"})
+        if (i.contains(key) && i[key].is_number()) r.sigma = i[key].get<double>();
       r.sequence = s;
       r.where = where;
       out.push_back(r);
@@ -139,7 +141,7 @@ std::vector<RawTime> FromText(const std::string& path, const std::string& text,
       if (t_col < 0 && (n == "time_s" || n == "t_impact_s" || n == "t_s" || n == "time" ||
                         n == "time (s)" || n == "t (s)" || n == "onset_s"))
         t_col = static_cast<int>(c);
-      if (n == "sigma_s") s_col = static_cast<int>(c);
+      if (n == "time_sigma_s" || n == "sigma_s") s_col = static_cast<int>(c);
       if (n == "sequence") q_col = static_cast<int>(c);
     }
     if (t_col < 0)

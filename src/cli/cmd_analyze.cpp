@@ -11,15 +11,11 @@
 // e_sigma includes the ball's scatter from bounce to bounce (bounce_screen.hpp);
 // e_timing_sigma is the timing part alone.
 //
-// --json: {"file", "sample_rate_hz", "channels", "channel", "scene": {effects, g, drop...},
-//   "sequence": {...}, "bounces": [{"index", "time_s", "time_sigma_s", "interval_s", "v_in_m_s",
-//   "v_in_sigma_m_s", "v_out_m_s", "v_out_sigma_m_s", "e", "e_sigma", "e_timing_sigma", "eta",
-//   "eta_sigma", "contact_s", "e_next_correlation", "irregular"}, ...], "summary":
-//   {"mean_eta_first3", "mean_eta_first3_sigma", "mean_eta_indices", "first_e", "first_e_sigma",
-//   "scatter_e", "scatter_e_sigma", "drop_consistent", "drop_height_fit_m", "drag_effect_e",
-//   "n_bounces", "n_with_e", "e_min", "e_max"}, "assumed": [{"key", "value", "note"}],
-//   "warnings": [...]}. Unknown values are null, never "nan".
-// --csv: header + one row per bounce, unknown values empty.
+// --json: schema bouncecal.analysis/1 (docs/schema.md; built by AnalysisJson, io/schema.hpp);
+//   several recordings or sequences: an array of them (a failed recording: bouncecal.error/1).
+//   Unknown values are null, never "nan"; contact_s is null when the correction is off.
+// --csv: header + one row per bounce (sequence, index, ...; a leading file column for several
+//   recordings), shortest round-trip numbers, unknown values empty.
 // Errors: one line on stderr, exit code from error.hpp, nothing on stdout.
 #include <cmath>
 #include <cstdio>
@@ -52,20 +48,10 @@ struct AnalyzeFlags {
   bool csv = false;
 };
 
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
-nlohmann::json Opt(const std::optional<double>& v) { return v ? Num(*v) : nlohmann::json(); }
-
 std::string Fixed(double v, int decimals, int width = 0) {
   if (!std::isfinite(v)) return std::string(static_cast<size_t>(std::max(width - 1, 0)), ' ') + "-";
   char buf[64];
   std::snprintf(buf, sizeof buf, "%*.*f", width, decimals, v);
-  return buf;
-}
-
-std::string CsvNum(double v) {
-  if (!std::isfinite(v)) return "";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
 }
 
@@ -83,29 +69,6 @@ Summary Summarize(const Analysis& a) {
     s.e_max = std::isfinite(s.e_max) ? std::max(s.e_max, b.e) : b.e;
   }
   return s;
-}
-
-nlohmann::json SceneJson(const GivenScene& gs, const Analysis& a) {
-  const Scene& scene = gs.scene;
-  nlohmann::json j;
-  j["source"] = scene.source.empty() ? nlohmann::json() : nlohmann::json(scene.source);
-  j["drag"] = DragModelName(scene.effects.drag);
-  j["buoyancy"] = scene.effects.buoyancy;
-  j["contact_duration"] = scene.effects.contact_duration;
-  j["surface_compliance"] = scene.effects.surface_compliance;
-  j["g_m_s2"] = scene.environment.g_m_s2;
-  j["effective_gravity_m_s2"] = a.effective_gravity_m_s2;
-  j["terminal_speed_m_s"] = Num(a.terminal_speed_m_s);
-  const bool drop = gs.drop_given;
-  j["drop_height_m"] = drop ? Opt(scene.drop.height_m) : nlohmann::json();
-  j["drop_height_sigma_m"] =
-      drop && scene.drop.height_m ? nlohmann::json(a.height_sigma_m) : nlohmann::json();
-  j["impact_speed_m_s"] = drop ? Opt(scene.drop.impact_speed_m_s) : nlohmann::json();
-  j["ball"] = {{"diameter_m", scene.ball.diameter_m},
-               {"mass_kg", Num(scene.ball.Mass())},
-               {"density_kg_m3", Num(scene.ball.Density())},
-               {"material", scene.ball.material}};
-  return j;
 }
 
 std::string EffectsLine(const GivenScene& gs, const Analysis& a) {
@@ -132,8 +95,8 @@ std::string EffectsLine(const GivenScene& gs, const Analysis& a) {
 
 // One chosen sequence of one recording; JSON goes to *json (when --json), text to stdout.
 void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptions& aopt,
-            const std::string& file, const LoadedRecording& loaded, int chosen,
-            nlohmann::json* json_out) {
+            const std::string& file, const LoadedRecording& loaded, int chosen, bool csv_header,
+            bool with_file, nlohmann::json* json_out) {
   const DetectionResult& det = loaded.result;
   const AudioInfo& info = det.audio;
   const Scene& scene = gs.scene;
@@ -152,71 +115,33 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   const Summary sum = Summarize(an);
 
   if (flags.json) {
-    nlohmann::json j;
-    j["file"] = file;
-    j["sample_rate_hz"] = Num(info.sample_rate_hz > 0 ? info.sample_rate_hz : NAN);
-    j["channels"] = info.channels;
-    j["channel"] = det.channel >= 0 ? nlohmann::json(det.channel) : nlohmann::json("mix");
-    j["scene"] = SceneJson(gs, an);
-    j["sequence"] = {{"n_sequences", det.sequences.size()},
-                     {"main_sequence", det.main_sequence},
-                     {"sequence", chosen},
-                     {"source", loaded.impacts_file.empty() ? "detection" : "impacts_file"},
-                     {"n_impacts", seq.impacts.size()},
-                     {"missed_after", seq.missed_after},
-                     {"end_reason", seq.end_reason}};
-    nlohmann::json bounces = nlohmann::json::array();
-    for (const Bounce& b : an.bounces) {
-      bounces.push_back({{"index", b.index},
-                         {"time_s", b.time_s},
-                         {"time_sigma_s", Num(b.time_sigma_s)},
-                         {"interval_s", Num(b.interval_s)},
-                         {"v_in_m_s", Num(b.v_in_m_s)},
-                         {"v_in_sigma_m_s", Num(b.v_in_sigma_m_s)},
-                         {"v_out_m_s", Num(b.v_out_m_s)},
-                         {"v_out_sigma_m_s", Num(b.v_out_sigma_m_s)},
-                         {"e", Num(b.e)},
-                         {"e_sigma", Num(b.e_total_sigma)},
-                         {"e_timing_sigma", Num(b.e_sigma)},
-                         {"eta", Num(b.eta)},
-                         {"eta_sigma", Num(b.eta_sigma)},
-                         {"contact_s", Num(b.contact_s)},
-                         {"e_next_correlation", Num(b.e_next_correlation)},
-                         {"irregular", b.irregular}});
-    }
-    j["bounces"] = bounces;
-    j["summary"] = {{"mean_eta_first3", Opt(an.mean_eta_first3)},
-                    {"mean_eta_first3_sigma", Opt(an.mean_eta_first3_sigma)},
-                    {"mean_eta_indices", an.mean_eta_indices},
-                    {"first_e", Opt(an.first_e)},
-                    {"first_e_sigma", Opt(an.first_e_sigma)},
-                    {"scatter_e", Opt(an.scatter_e)},
-                    {"scatter_e_sigma", Opt(an.scatter_e_sigma)},
-                    {"drop_consistent", an.drop_consistent},
-                    {"drop_height_fit_m", Opt(an.drop_height_fit_m)},
-                    {"drag_effect_e", Opt(an.drag_effect_e)},
-                    {"n_bounces", an.bounces.size()},
-                    {"n_with_e", sum.n_with_e},
-                    {"e_min", Num(sum.e_min)},
-                    {"e_max", Num(sum.e_max)}};
-    j["assumed"] = AssumedJson(assumed);
-    j["warnings"] = WarningsJson(warnings);
-    json_out->push_back(j);
+    json_out->push_back(AnalysisJson(file, det, chosen, scene, an,
+                                     {.drop_known = gs.drop_given,
+                                      .from_impacts_file = !loaded.impacts_file.empty(),
+                                      .assumed = AssumedJson(assumed),
+                                      .warnings = warnings}));
     return;
   }
 
   PrintWarnings(warnings);
   std::ostringstream o;
   if (flags.csv) {
-    o << "index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
-         "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular\n";
+    // contact_s is empty (not applicable) when the contact-duration correction is off.
+    const bool contact = scene.effects.contact_duration;
+    if (csv_header) {
+      o << (with_file ? "file," : "")
+        << "sequence,index,time_s,time_sigma_s,interval_s,v_in_m_s,v_in_sigma_m_s,v_out_m_s,"
+           "v_out_sigma_m_s,e,e_sigma,e_timing_sigma,eta,eta_sigma,contact_s,irregular\n";
+    }
     for (const Bounce& b : an.bounces) {
-      o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
-        << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
-        << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
-        << "," << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta)
-        << "," << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << ","
-        << (b.irregular ? 1 : 0) << "\n";
+      if (with_file) o << CsvField(file) << ",";
+      o << chosen << "," << b.index << "," << CsvNumber(b.time_s) << ","
+        << CsvNumber(b.time_sigma_s) << "," << CsvNumber(b.interval_s) << ","
+        << CsvNumber(b.v_in_m_s) << "," << CsvNumber(b.v_in_sigma_m_s) << ","
+        << CsvNumber(b.v_out_m_s) << "," << CsvNumber(b.v_out_sigma_m_s) << "," << CsvNumber(b.e)
+        << "," << CsvNumber(b.e_total_sigma) << "," << CsvNumber(b.e_sigma) << ","
+        << CsvNumber(b.eta) << "," << CsvNumber(b.eta_sigma) << ","
+        << (contact ? CsvNumber(b.contact_s) : "") << "," << (b.irregular ? 1 : 0) << "\n";
     }
     std::cout << o.str();
     return;
@@ -305,6 +230,7 @@ void Run(const AnalyzeFlags& flags) {
   const bool several = inputs.size() > 1;
   nlohmann::json all = nlohmann::json::array();
   bool any_failed = false;
+  bool csv_header_done = false;
   for (std::size_t n = 0; n < inputs.size(); ++n) {
     const auto& [rec, imp] = inputs[n];
     const std::string name = rec.empty() ? imp : rec;
@@ -312,18 +238,14 @@ void Run(const AnalyzeFlags& flags) {
       const LoadedRecording loaded = LoadRecording(rec, nullptr, imp, flags.detect);
       for (int s : loaded.chosen) {
         if (!flags.json && !flags.csv && (n > 0 || s != loaded.chosen.front())) std::cout << "\n";
-        RunOne(flags, gs, aopt, name, loaded, s, &all);
+        RunOne(flags, gs, aopt, name, loaded, s, !csv_header_done, several, &all);
+        csv_header_done = true;
       }
     } catch (const Error& e) {
       if (!several) throw;
       any_failed = true;
       std::fprintf(stderr, "bouncecal: %s\n", e.what());
-      if (flags.json)
-        all.push_back({{"file", name},
-                       {"error",
-                        {{"code", ErrorCodeName(e.code())},
-                         {"exit_code", e.exit_code()},
-                         {"message", e.what()}}}});
+      if (flags.json) all.push_back(FailedInputJson(name, e.code(), e.what()));
     }
   }
   // One recording and one sequence: the object itself (the shape of one analysis).

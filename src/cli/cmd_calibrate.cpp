@@ -62,22 +62,13 @@ struct CalibrateArgs {
   bool quiet = false;  // no progress line
 };
 
-std::string Num(double v, int prec = 10) {
+// A number as printed in text (assumed values): `prec` significant digits, "" if unknown.
+std::string Num(double v, int prec) {
   if (!std::isfinite(v)) return "";
   std::ostringstream os;
   os.precision(prec);
   os << v;
   return os.str();
-}
-
-std::string CsvField(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"') out += '"';
-    out += c;
-  }
-  return out + "\"";
 }
 
 // The drops (chosen sequences) of one recording / --impacts pair, as calibration inputs.
@@ -125,6 +116,7 @@ std::string CsvHeader(const std::vector<ParameterSpec>& specs) {
   return h + ",scatter_e,scatter_e_sigma,rms_residual,residual_unit,chi2_dof,reason";
 }
 
+// One row: numbers in shortest round-trip form, empty when unknown or not applicable.
 std::string CsvRow(const std::string& file, const std::vector<ParameterSpec>& specs,
                    const Calibration* c, const Error* err) {
   std::string row = CsvField(file) + ",";
@@ -138,41 +130,10 @@ std::string CsvRow(const std::string& file, const std::vector<ParameterSpec>& sp
   int impacts = 0;
   for (const auto& r : c->recordings) impacts += r.impacts;
   row += std::to_string(impacts);
-  for (const auto& p : c->parameters) row += "," + Num(p.value) + "," + Num(p.sigma, 4);
-  return row + "," + Num(c->scatter_e, 4) + "," + Num(c->scatter_e_sigma, 3) + "," +
-         Num(c->rms_residual, 6) + "," + c->residual_unit + "," + Num(c->chi2_dof, 6) + "," +
+  for (const auto& p : c->parameters) row += "," + CsvNumber(p.value) + "," + CsvNumber(p.sigma);
+  return row + "," + CsvNumber(c->scatter_e) + "," + CsvNumber(c->scatter_e_sigma) + "," +
+         CsvNumber(c->rms_residual) + "," + c->residual_unit + "," + CsvNumber(c->chi2_dof) + "," +
          CsvField(c->outcome == FitOutcome::kConverged ? "" : c->reason);
-}
-
-nlohmann::json JsonRow(const std::string& file, const Calibration* c, const Error* err) {
-  nlohmann::json j = {{"file", file}};
-  if (err) {
-    j["status"] = ErrorCodeName(err->code());
-    j["error"] = err->what();
-    return j;
-  }
-  j["status"] = c->outcome == FitOutcome::kConverged ? "ok" : "fit";
-  j["law"] = c->law;
-  j["outcome"] = FitOutcomeName(c->outcome);
-  j["reason"] = c->reason;
-  j["scatter_e"] = JsonNumber(c->scatter_e);
-  j["scatter_e_sigma"] = JsonNumber(c->scatter_e_sigma);
-  j["warnings"] = WarningsJson(c->warnings);
-  nlohmann::json params = nlohmann::json::object();
-  for (const auto& p : c->parameters) {
-    params[p.name] = {{"value", std::isfinite(p.value) ? nlohmann::json(p.value) : nullptr},
-                      {"sigma", std::isfinite(p.sigma) ? nlohmann::json(p.sigma) : nullptr},
-                      {"unit", p.unit},
-                      {"fixed", p.fixed}};
-  }
-  j["parameters"] = params;
-  int impacts = 0;
-  for (const auto& r : c->recordings) impacts += r.impacts;
-  j["impacts"] = impacts;
-  j[c->strategy == FitStrategy::kTrajectory ? "rms_residual_s" : "rms_residual_e"] =
-      JsonNumber(c->rms_residual);
-  j["chi2_dof"] = JsonNumber(c->chi2_dof);
-  return j;
 }
 
 int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOptions& opts,
@@ -197,7 +158,7 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     const Calibration* c = fits[i] ? &*fits[i] : nullptr;
     const Error* e = errors[i] ? &*errors[i] : nullptr;
     if (a.csv) return CsvRow(names[i], specs, c, e);
-    if (a.json) return JsonRow(names[i], c, e).dump();
+    if (a.json) return CalibrationRowJson(names[i], c, e).dump();
     return names[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
               : c->BriefReport() + (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
@@ -336,19 +297,9 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
     if (!r.adequate) inadequate.push_back(r.fit.law + " (" + FitOutcomeName(r.fit.outcome) + ")");
   }
   if (a.json) {
-    nlohmann::json j = {{"schema", "bouncecal.law_comparison/1"}};
-    nlohmann::json laws = nlohmann::json::array();
-    int rank = 0;
-    for (const auto& r : rows) {
-      nlohmann::json l = ParamFileJson(r.fit, prov, options_json);
-      l["adequate"] = r.adequate;
-      l["rank"] = r.adequate ? nlohmann::json(++rank) : nlohmann::json();
-      l["delta_aic"] = JsonNumber(r.delta_aic);
-      laws.push_back(l);
-    }
-    j["laws"] = laws;
-    j["assumed"] = AssumedJson(AssumedValues(gs, true));
-    std::cout << j.dump(2) << "\n";
+    std::cout
+        << LawComparisonJson(rows, prov, options_json, AssumedJson(AssumedValues(gs, true))).dump(2)
+        << "\n";
   } else if (a.csv) {
     std::cout << "rank,law,outcome,adequate,scatter_e,chi2_dof,aic,delta_aic,reason\n";
     int rank = 0;
@@ -356,8 +307,9 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
       const auto& c = r.fit;
       std::cout << (r.adequate ? std::to_string(++rank) : "") << "," << c.law << ","
                 << FitOutcomeName(c.outcome) << "," << (r.adequate ? 1 : 0) << ","
-                << Num(c.scatter_e, 4) << "," << Num(c.chi2_dof, 6) << "," << Num(c.aic, 8) << ","
-                << Num(r.delta_aic, 6) << "," << CsvField(r.adequate ? "" : c.reason) << "\n";
+                << CsvNumber(c.scatter_e) << "," << CsvNumber(c.chi2_dof) << "," << CsvNumber(c.aic)
+                << "," << CsvNumber(r.delta_aic) << "," << CsvField(r.adequate ? "" : c.reason)
+                << "\n";
     }
   } else {
     std::cout << AssumedText(AssumedValues(gs, true)) << "law comparison ("
@@ -381,7 +333,7 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
             (rows.empty() ? "" : ": " + rows.front().fit.law + ": " + rows.front().fit.reason));
   }
   if (!a.output.empty()) {
-    WriteParamFile(a.output, ParamFileJson(rows.front().fit, prov, options_json),
+    WriteParamFile(a.output, CalibrationJson(rows.front().fit, prov, options_json),
                    {.force = a.force, .inputs = a.files});
   }
 }
@@ -400,7 +352,7 @@ void Run(const CalibrateArgs& a) {
   const CalibrationOptions opts = Options(a, gs);
   const Scene& scene = gs.scene;
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
-  MakeDetectOptions(a.detect);  // flag errors before any work
+  MakeDetectOptions(a.detect);            // flag errors before any work
   const auto pairs = PairInputs(a.files, a.detect);
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
@@ -440,7 +392,7 @@ void Run(const CalibrateArgs& a) {
   write_report(&c, nullptr);
   c.warnings.insert(c.warnings.begin(), unit_warnings.begin(), unit_warnings.end());
   const std::vector<Assumed> assumed = AssumedFor(gs, c);
-  nlohmann::json doc = ParamFileJson(c, prov, options_json);
+  nlohmann::json doc = CalibrationJson(c, prov, options_json);
   doc["assumed"] = AssumedJson(assumed);
   if (a.json) {
     std::cout << doc.dump(2) << "\n";

@@ -6,19 +6,12 @@
 //   bouncecal detect a.wav b.m4a --json            # several recordings: a JSON array
 //   bouncecal detect drop.wav --click-track clicks.wav   # listen to what was found
 //
-// --json, one recording: {"file", "sample_rate_hz", "channels", "channel_used" (null = mix),
-//   "duration_s", "audio": {"format", "codec", "decoder", "lossy", "codec_delay_samples",
-//   "codec_delay_s", "codec_delay_trimmed"}, "window": {"start_s", "end_s"}, "source"
-//   ("detection" | "impacts_file"), "channel_scores": [{"channel" (null = mix), "score",
-//   "impacts", "failure"}], "clipping": [{"channel", "clipped_samples", "peak"}], "impacts":
-//   [the first chosen sequence's impacts], "sequences": [{"impacts": [{"time_s", "sigma_s",
-//   "amplitude", "snr_db", "score", "clipped"}...], "missed_after": [...], "irregular_after":
-//   [...], "removed": [{"time_s", "sigma_s", "amplitude", "snr_db", "code"}], "end_reason"}...],
-//   "main_sequence", "chosen_sequences": [...], "n_candidates", "warnings": [...]}.
+// --json: schema bouncecal.detect/1 (docs/schema.md; built by DetectionJson, io/schema.hpp).
 //   Several recordings: an array of these objects, one per recording in order; a recording that
-//   failed is {"file", "error": {"code", "exit_code", "message"}}.
-// --csv: sequence,index,time_s,sigma_s,amplitude,snr_db,score,clipped (several recordings: a
-//   leading file column).
+//   failed is a bouncecal.error/1 object {"schema", "file", "error": {"code", "exit_code",
+//   "message"}}.
+// --csv: sequence,index,time_s,time_sigma_s,amplitude,snr_db,score,clipped (several
+//   recordings: a leading file column); numbers in shortest round-trip form, empty = unknown.
 // Errors: one line on stderr, exit code from error.hpp, nothing on stdout (one recording);
 // several recordings: each failure on stderr, the others printed, exit 12 if any failed.
 #include <cmath>
@@ -52,84 +45,10 @@ struct DetectArgs {
   bool force = false;
 };
 
-nlohmann::json ImpactJson(const Impact& i) {
-  return {{"time_s", i.time_s},       {"sigma_s", JsonNumber(i.sigma_s)},
-          {"amplitude", i.amplitude}, {"snr_db", JsonNumber(i.snr_db)},
-          {"score", i.score},         {"clipped", i.clipped}};
-}
-
 std::string Format(const char* fmt, double a) {
   char buf[64];
   std::snprintf(buf, sizeof buf, fmt, a);
   return buf;
-}
-
-nlohmann::json ResultJson(const std::string& file, const LoadedRecording& l) {
-  const DetectionResult& r = l.result;
-  nlohmann::json j;
-  j["file"] = file;
-  j["sample_rate_hz"] = JsonNumber(r.audio.sample_rate_hz > 0 ? r.audio.sample_rate_hz : NAN);
-  j["channels"] = r.audio.channels;
-  j["channel_used"] = r.channel >= 0 ? nlohmann::json(r.channel) : nlohmann::json();
-  j["duration_s"] = r.audio.duration_s();
-  const double rate = r.audio.sample_rate_hz;
-  j["audio"] = {
-      {"format", r.audio.format},
-      {"codec", r.audio.subtype},
-      {"decoder", r.audio.decoder},
-      {"lossy", r.audio.lossy},
-      {"codec_delay_samples", r.audio.codec_delay_samples},
-      {"codec_delay_s",
-       JsonNumber(rate > 0 ? static_cast<double>(r.audio.codec_delay_samples) / rate : NAN)},
-      {"codec_delay_trimmed", r.audio.codec_delay_trimmed}};
-  j["window"] = {{"start_s", r.start_s}, {"end_s", r.end_s}};
-  j["source"] = l.impacts_file.empty() ? "detection" : "impacts_file";
-  j["channel_scores"] = nlohmann::json::array();
-  for (const ChannelScore& c : r.channel_scores)
-    j["channel_scores"].push_back(
-        {{"channel", c.channel >= 0 ? nlohmann::json(c.channel) : nlohmann::json()},
-         {"score", c.score},
-         {"impacts", c.impacts},
-         {"failure", c.failure.empty() ? nlohmann::json() : nlohmann::json(c.failure)}});
-  j["clipping"] = nlohmann::json::array();
-  for (const ClippingReport& c : r.clipping)
-    j["clipping"].push_back(
-        {{"channel", c.channel}, {"clipped_samples", c.clipped_samples}, {"peak", c.peak}});
-  j["impacts"] = nlohmann::json::array();
-  if (!l.chosen.empty())
-    for (const Impact& i : r.sequences[static_cast<std::size_t>(l.chosen.front())].impacts)
-      j["impacts"].push_back(ImpactJson(i));
-  j["sequences"] = nlohmann::json::array();
-  for (const Sequence& s : r.sequences) {
-    nlohmann::json q;
-    q["impacts"] = nlohmann::json::array();
-    for (const Impact& i : s.impacts) q["impacts"].push_back(ImpactJson(i));
-    q["missed_after"] = s.missed_after;
-    q["irregular_after"] = s.irregular_after;
-    q["removed"] = nlohmann::json::array();
-    for (const RemovedImpact& x : s.removed) {
-      nlohmann::json rj = ImpactJson(x.impact);
-      rj["code"] = x.code;
-      q["removed"].push_back(rj);
-    }
-    q["end_reason"] = s.end_reason;
-    j["sequences"].push_back(q);
-  }
-  j["main_sequence"] = r.main_sequence;
-  j["chosen_sequences"] = l.chosen;
-  j["n_candidates"] = r.candidates.size();
-  j["warnings"] = WarningsJson(r.warnings);
-  return j;
-}
-
-std::string CsvQuote(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"') out += '"';
-    out += c;
-  }
-  return out + "\"";
 }
 
 void PrintCsv(const std::string& file, const DetectionResult& r, bool with_file) {
@@ -137,11 +56,10 @@ void PrintCsv(const std::string& file, const DetectionResult& r, bool with_file)
     const auto& imps = r.sequences[s].impacts;
     for (std::size_t k = 0; k < imps.size(); ++k) {
       const Impact& i = imps[k];
-      char buf[256];
-      std::snprintf(buf, sizeof buf, "%zu,%zu,%.9f,%.3e,%.6g,%.2f,%.3f,%d\n", s, k, i.time_s,
-                    i.sigma_s, i.amplitude, i.snr_db, i.score, i.clipped ? 1 : 0);
-      if (with_file) std::cout << CsvQuote(file) << ",";
-      std::cout << buf;
+      if (with_file) std::cout << CsvField(file) << ",";
+      std::cout << s << "," << k << "," << CsvNumber(i.time_s) << "," << CsvNumber(i.sigma_s) << ","
+                << CsvNumber(i.amplitude) << "," << CsvNumber(i.snr_db) << "," << CsvNumber(i.score)
+                << "," << (i.clipped ? 1 : 0) << "\n";
     }
   }
 }
@@ -237,11 +155,12 @@ void Run(const DetectArgs& a) {
       }
       PrintWarnings(l.result.warnings);
       if (a.json) {
-        all.push_back(ResultJson(name, l));
+        all.push_back(DetectionJson(
+            name, l.result, {.chosen = l.chosen, .from_impacts_file = !l.impacts_file.empty()}));
       } else if (a.csv) {
         if (!csv_header)
           std::cout << (several ? "file," : "")
-                    << "sequence,index,time_s,sigma_s,amplitude,snr_db,score,clipped\n";
+                    << "sequence,index,time_s,time_sigma_s,amplitude,snr_db,score,clipped\n";
         csv_header = true;
         PrintCsv(name, l.result, several);
       } else {
@@ -253,12 +172,7 @@ void Run(const DetectArgs& a) {
       if (!several) throw;
       any_failed = true;
       std::fprintf(stderr, "bouncecal: %s\n", e.what());
-      if (a.json)
-        all.push_back({{"file", name},
-                       {"error",
-                        {{"code", ErrorCodeName(e.code())},
-                         {"exit_code", e.exit_code()},
-                         {"message", e.what()}}}});
+      if (a.json) all.push_back(FailedInputJson(name, e.code(), e.what()));
     }
   }
   if (a.json) std::cout << (several ? all : all[0]).dump(2) << "\n";

@@ -1,7 +1,9 @@
-// `bouncecal laws [--json] [--scene FILE] [NAME]`: every registered contact law with its
+// `bouncecal laws [--json|--csv] [--scene FILE] [NAME]`: every registered contact law with its
 // formula, source, end rule, parameters (unit, bounds, default, damping flag) and the closed
 // forms it provides. Defaults that depend on the scene (Hertz stiffness from the materials) are
 // shown for the given scene, or for the default scene (seed 002: 1 cm steel ball on copper).
+// --json: schema bouncecal.laws/1 (docs/schema.md); --csv: law,parameter,unit,default,lower,
+// upper,damping,description (one row per parameter; shortest round-trip numbers).
 #include <cmath>
 #include <iomanip>
 #include <iostream>
@@ -12,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 
@@ -20,6 +23,7 @@ namespace {
 
 struct LawsFlags {
   bool json = false;
+  bool csv = false;
   std::string scene_file;
   std::string name;
 };
@@ -34,14 +38,6 @@ LawSpec ListingSpec(const std::string& name) {
     spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
   }
   return spec;
-}
-
-const char* EndRuleName(ContactEnd end) {
-  return end == ContactEnd::kForceZero ? "force_zero" : "overlap_zero";
-}
-
-nlohmann::json Number(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
 std::string Fmt(double v) {
@@ -63,30 +59,19 @@ void Run(const LawsFlags& f) {
     if (one.empty()) CreateLaw(ListingSpec(f.name), scene);  // throws the "unknown law" error
     infos = one;
   }
-  nlohmann::json laws = nlohmann::json::array();
+  std::vector<nlohmann::json> laws;
   std::ostringstream text;
+  std::ostringstream csv;
+  csv << "law,parameter,unit,default,lower,upper,damping,description\n";
   for (const LawInfo& info : infos) {
     const std::unique_ptr<ContactLaw> law = CreateLaw(ListingSpec(info.name), scene);
-    nlohmann::json params = nlohmann::json::array();
+    const std::string expression = ListingSpec(info.name).expression;
+    laws.push_back(LawListingJson(*law, info.summary, expression));
     for (const ParameterSpec& s : law->Parameters()) {
-      params.push_back({{"name", s.name},
-                        {"unit", s.unit},
-                        {"lower", Number(s.lower)},
-                        {"upper", Number(s.upper)},
-                        {"default", Number(s.default_value)},
-                        {"damping", s.damping},
-                        {"description", s.description}});
+      csv << CsvField(info.name) << "," << CsvField(s.name) << "," << CsvField(s.unit) << ","
+          << CsvNumber(s.default_value) << "," << CsvNumber(s.lower) << "," << CsvNumber(s.upper)
+          << "," << (s.damping ? 1 : 0) << "," << CsvField(s.description) << "\n";
     }
-    nlohmann::json entry = {{"name", info.name},
-                            {"summary", info.summary},
-                            {"formula", law->Formula()},
-                            {"source", law->Source()},
-                            {"end_rule", EndRuleName(law->EndRule())},
-                            {"state_size", law->StateSize()},
-                            {"parameters", params},
-                            {"closed_forms", law->ClosedForms()}};
-    if (info.needs_expression) entry["example_expression"] = ListingSpec(info.name).expression;
-    laws.push_back(entry);
 
     text << info.name << " — " << info.summary << "\n";
     text << "  " << law->Formula() << "\n";
@@ -112,7 +97,9 @@ void Run(const LawsFlags& f) {
     text << "  closed forms: " << (forms.empty() ? "none (integrated)" : forms) << "\n\n";
   }
   if (f.json) {
-    std::cout << nlohmann::json{{"laws", laws}}.dump(2) << "\n";
+    std::cout << LawsJson(laws).dump(2) << "\n";
+  } else if (f.csv) {
+    std::cout << csv.str();
   } else {
     std::cout << text.str();
   }
@@ -127,7 +114,9 @@ void RegisterLaws(CLI::App& app) {
   sub->add_option("name", flags->name, "show only this law");
   sub->add_option("--scene", flags->scene_file,
                   "scene whose materials set the defaults (default: 1 cm steel ball on copper)");
-  sub->add_flag("--json", flags->json, "JSON on stdout");
+  auto* json = sub->add_flag("--json", flags->json, "JSON on stdout");
+  auto* csv = sub->add_flag("--csv", flags->csv, "CSV on stdout: one row per law parameter");
+  json->excludes(csv);
   sub->callback([flags]() { Run(*flags); });
 }
 

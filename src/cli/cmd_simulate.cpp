@@ -4,8 +4,9 @@
 //   bouncecal simulate --law walton-braun --set gamma=0.5 --height 0.2 --json
 //   bouncecal simulate --params params.json      # replay a fit: law, parameters, scene, drop
 //
-// Human table on stdout by default; --json / --csv for scripts (stable keys); messages on
-// stderr only.
+// Human table on stdout by default; --json (schema bouncecal.simulation/1, docs/schema.md) /
+// --csv (shortest round-trip numbers; e empty when the ball arrived at rest) for scripts;
+// messages on stderr only.
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -16,6 +17,7 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/io/param_resolved.hpp"
+#include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "commands.hpp"
@@ -37,46 +39,15 @@ struct SimulateFlags {
 
 double Restitution(const SimImpact& i) { return i.v_in_m_s > 0.0 ? i.v_out_m_s / i.v_in_m_s : 0.0; }
 
-nlohmann::json ToJson(const ContactLaw& law, const std::vector<double>& p, const Simulation& s) {
-  nlohmann::json j;
-  j["law"]["name"] = law.Name();
-  nlohmann::json params = nlohmann::json::object();
-  for (size_t i = 0; i < p.size(); ++i) params[law.Parameters()[i].name] = p[i];
-  j["law"]["parameters"] = params;
-  nlohmann::json impacts = nlohmann::json::array();
-  for (size_t k = 0; k < s.impacts.size(); ++k) {
-    const SimImpact& i = s.impacts[k];
-    impacts.push_back({{"index", k},
-                       {"time_s", i.time_s},
-                       {"v_in_m_s", i.v_in_m_s},
-                       {"v_out_m_s", i.v_out_m_s},
-                       {"e", Restitution(i)},
-                       {"contact_s", i.contact_s},
-                       {"peak_overlap_m", i.peak_overlap_m},
-                       {"peak_force_n", i.peak_force_n},
-                       {"steps", i.steps}});
-  }
-  j["impacts"] = impacts;
-  const EnergyLedger& e = s.energy;
-  j["energy"] = {{"initial_j", e.initial_j},
-                 {"final_mechanical_j", e.final_mechanical_j},
-                 {"dissipated_contact_j", e.dissipated_contact_j},
-                 {"dissipated_drag_j", e.dissipated_drag_j},
-                 {"internal_j", e.internal_j},
-                 {"balance_error_j", e.balance_error_j}};
-  j["stop_reason"] = StopReasonName(s.stop_reason);
-  j["stop_detail"] = s.stop_detail;
-  j["total_steps"] = s.total_steps;
-  return j;
-}
-
 void PrintCsv(const Simulation& s) {
-  std::printf("index,time_s,v_in_m_s,v_out_m_s,e,contact_s,peak_overlap_m,peak_force_n,steps\n");
+  std::cout << "index,time_s,v_in_m_s,v_out_m_s,e,contact_s,peak_overlap_m,peak_force_n,steps\n";
   for (size_t k = 0; k < s.impacts.size(); ++k) {
     const SimImpact& i = s.impacts[k];
-    std::printf("%zu,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%d\n", k, i.time_s, i.v_in_m_s,
-                i.v_out_m_s, Restitution(i), i.contact_s, i.peak_overlap_m, i.peak_force_n,
-                i.steps);
+    std::cout << k << "," << CsvNumber(i.time_s) << "," << CsvNumber(i.v_in_m_s) << ","
+              << CsvNumber(i.v_out_m_s) << ","
+              << (i.v_in_m_s > 0.0 ? CsvNumber(i.v_out_m_s / i.v_in_m_s) : "") << ","
+              << CsvNumber(i.contact_s) << "," << CsvNumber(i.peak_overlap_m) << ","
+              << CsvNumber(i.peak_force_n) << "," << i.steps << "\n";
   }
 }
 
@@ -142,7 +113,7 @@ void Run(const SimulateFlags& f) {
   const std::vector<double> p = law->ParameterValues();
   const Simulation sim = Simulate(scene, *law, p, options);
   if (f.json) {
-    std::cout << ToJson(*law, p, sim).dump(2) << "\n";
+    std::cout << SimulationJson(scene, *law, p, sim).dump(2) << "\n";
   } else if (f.csv) {
     PrintCsv(sim);
   } else {

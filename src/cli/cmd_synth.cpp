@@ -27,6 +27,8 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/io/schema.hpp"
+#include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "commands.hpp"
 #include "scene_flags.hpp"
@@ -273,7 +275,8 @@ void Run(const SynthFlags& f) {
   std::size_t impacts = 0;
   for (const auto& d : result.truth) impacts += d.size();
   if (f.json) {
-    nlohmann::json j = {{"audio", f.output},
+    nlohmann::json j = {{"schema", kSynthSchema},
+                        {"audio", f.output},
                         {"truth", truth_path},
                         {"preset", spec.name},
                         {"seed", spec.render.seed},
@@ -283,7 +286,12 @@ void Run(const SynthFlags& f) {
                         {"drops", result.truth.size()},
                         {"impacts", impacts},
                         {"truth_source", TruthSourceName(spec.truth_source)}};
-    if (spec.truth_source == TruthSource::kLaw) j["law"] = truth.at("law");
+    // The contact law the impacts were simulated with (null: from restitution values).
+    j["law"] = nullptr;
+    if (spec.truth_source == TruthSource::kLaw) {
+      const auto law = CreateLaw(spec.scene.law, spec.scene);
+      j["law"] = LawJson(*law, law->ParameterValues(), spec.scene.law.expression);
+    }
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf(

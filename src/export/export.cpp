@@ -457,6 +457,10 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.target = ExportTargetName(options.target);
   r.scene = ExportSceneName(options.scene);
   r.law = scene.law.name;
+  // The fit's law object (values and sigmas); a version-1 file's law rebuilt from the registry.
+  r.law_json = pf.schema == kParamFileSchema && pf.doc.contains("law")
+                   ? pf.doc["law"]
+                   : LawJson(*law, law->ParameterValues(), scene.law.expression);
   r.simulator_version = options.simulator_version;
   if (r.simulator_version.empty()) r.simulator_version = DetectSimulatorVersion(options.target);
   const std::string verified = VerifiedSimulatorVersion(options.target);
@@ -591,11 +595,11 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
 nlohmann::json ExportResultJson(const ExportResult& r) {
   nlohmann::json coeffs = nlohmann::json::object();
   for (const auto& [k, v] : r.coefficients) coeffs[k] = v;
-  return {{"schema", "bouncecal.export/1"},
+  return {{"schema", kExportSchema},
           {"target", r.target},
           {"scene", r.scene},
           {"simulator_version", r.simulator_version},
-          {"law", r.law},
+          {"law", r.law_json.is_object() ? r.law_json : nlohmann::json(nullptr)},
           {"native_law", r.native_law},
           {"mapping", r.kind},
           {"exact", r.exact},

@@ -84,7 +84,7 @@ Panel WaveformPanel(const json& rec) {
     rej.Row({D(c["time_s"]), -std::max(SigmaOr0(c["amplitude"]), floor)});
   Panel p;
   p.blocks = env.Text() + imp.Text() + rej.Text();
-  std::string title = "waveform: " + rec["path"].get<std::string>();
+  std::string title = "waveform: " + rec["file"].get<std::string>();
   if (!rec["no_impacts_reason"].is_null()) title += " (no impacts)";
   p.plot = "set title " + Quote(title) +
            "\nset xlabel 'time (s)'\nset ylabel 'amplitude (full scale)'\n"
@@ -102,7 +102,7 @@ Panel WaveformPanel(const json& rec) {
 Panel IntervalsPanel(const json& rec) {
   Block b("$intervals");
   for (const json& iv : rec["intervals"])
-    b.Row({D(iv["index"]), D(iv["interval_s"]), SigmaOr0(iv["sigma_s"])});
+    b.Row({D(iv["index"]), D(iv["interval_s"]), SigmaOr0(iv["interval_sigma_s"])});
   return {b.Text(),
           "set title 'intervals per bounce'\nset xlabel 'bounce k'\nset ylabel 'interval (s)'\n"
           "plot $intervals using 1:2:3 with yerrorbars pt 7 ps 0.6 lc rgb '#1f77b4' title "
@@ -125,11 +125,11 @@ Panel RestitutionPanel(const json& data) {
     Block ev("$e_of_v");
     for (const json& q : fit["e_of_v"]) {
       if (!Finite(q["e"])) continue;
-      const double s = SigmaOr0(q["sigma"]);
+      const double s = SigmaOr0(q["e_sigma"]);
       ev.Row({D(q["v_m_s"]), D(q["e"]), D(q["e"]) - s, D(q["e"]) + s});
     }
     p.blocks += ev.Text();
-    const std::string law = fit["law"].get<std::string>();
+    const std::string law = fit["law"]["name"].get<std::string>();
     plots +=
         "$e_of_v using 1:3:4 with filledcurves lc rgb '#2ca02c' fs transparent solid 0.25 "
         "title " +
@@ -144,7 +144,7 @@ Panel RestitutionPanel(const json& data) {
       if (Finite(q["e"])) other.Row({D(q["v_m_s"]), D(q["e"])});
     p.blocks += other.Text();
     plots += other.name() + " using 1:2 with lines dt 2 lw 1 title " +
-             Quote(rows[r]["law"].get<std::string>()) + ", ";
+             Quote(rows[r]["law"]["name"].get<std::string>()) + ", ";
   }
   p.plot =
       "set title 'restitution against impact speed'\nset logscale x\n"

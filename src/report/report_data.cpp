@@ -52,11 +52,6 @@ double ImpactTime(const DetectionResult& d, int impact) {
                                                 : std::numeric_limits<double>::quiet_NaN();
 }
 
-json ImpactJson(const Impact& i) {
-  return {{"time_s", i.time_s},      {"sigma_s", Num(i.sigma_s)}, {"amplitude", Num(i.amplitude)},
-          {"snr_db", Num(i.snr_db)}, {"score", Num(i.score)},     {"clipped", i.clipped}};
-}
-
 // Detected impacts of every sequence, and the candidates that are in none (rejected). A
 // candidate belongs to a sequence when an impact lies within half the minimum resolvable
 // interval of it (the tracker keeps candidates' times or re-times them by the template).
@@ -99,21 +94,7 @@ void ImpactsJson(const ReportRecording& r, json* out) {
 
 json BouncesJson(const Analysis& a) {
   json out = json::array();
-  for (const Bounce& b : a.bounces) {
-    out.push_back({{"index", b.index},
-                   {"time_s", b.time_s},
-                   {"time_sigma_s", Num(b.time_sigma_s)},
-                   {"interval_s", Num(b.interval_s)},
-                   {"v_in_m_s", Num(b.v_in_m_s)},
-                   {"v_in_sigma_m_s", Num(b.v_in_sigma_m_s)},
-                   {"v_out_m_s", Num(b.v_out_m_s)},
-                   {"v_out_sigma_m_s", Num(b.v_out_sigma_m_s)},
-                   {"e", Num(b.e)},
-                   {"e_sigma", Num(b.e_sigma)},
-                   {"eta", Num(b.eta)},
-                   {"eta_sigma", Num(b.eta_sigma)},
-                   {"contact_s", Num(b.contact_s)}});
-  }
+  for (const Bounce& b : a.bounces) out.push_back(BounceJson(b));
   return out;
 }
 
@@ -126,7 +107,7 @@ json IntervalsJson(const DetectionResult& d) {
   for (size_t k = 0; k + 1 < imps.size(); ++k) {
     out.push_back({{"index", k},
                    {"interval_s", imps[k + 1].time_s - imps[k].time_s},
-                   {"sigma_s", Num(std::hypot(imps[k].sigma_s, imps[k + 1].sigma_s))}});
+                   {"interval_sigma_s", Num(std::hypot(imps[k].sigma_s, imps[k + 1].sigma_s))}});
   }
   return out;
 }
@@ -174,10 +155,10 @@ json WarningsJson(const ReportRecording& r) {
 json RecordingJson(const ReportRecording& r, const Calibration* c,
                    const ReportDataOptions& options) {
   json j;
-  j["path"] = r.path;
+  j["file"] = r.path;
   j["sample_rate_hz"] = r.audio.sample_rate_hz;
   j["channels"] = r.audio.channels;
-  j["channel"] = r.channel >= 0 ? json(r.channel) : json("mix");
+  j["channel"] = r.channel >= 0 ? json(r.channel) : json();  // null = the mix
   j["duration_s"] = r.audio.duration_s();
   j["format"] = r.audio.format + " " + r.audio.subtype;
   ImpactsJson(r, &j);
@@ -253,18 +234,18 @@ json EnergyJson(const Calibration& c, const ReportRecording* first) {
 json EOfVJson(const std::vector<EOfVPoint>& points) {
   json out = json::array();
   for (const EOfVPoint& p : points)
-    out.push_back({{"v_m_s", p.v_m_s}, {"e", Num(p.e)}, {"sigma", Num(p.sigma)}});
+    out.push_back({{"v_m_s", p.v_m_s}, {"e", Num(p.e)}, {"e_sigma", Num(p.sigma)}});
   return out;
 }
 
-json LawComparisonJson(const std::vector<LawComparisonRow>& rows) {
+json LawComparisonRowsJson(const std::vector<LawComparisonRow>& rows) {
   json out = json::array();
   int rank = 0;
   for (const LawComparisonRow& r : rows) {
     const Calibration& c = r.fit;
     const bool failed = c.outcome == FitOutcome::kFailed;
     out.push_back({{"rank", ++rank},
-                   {"law", c.law},
+                   {"law", LawJson(c)},
                    {"outcome", FitOutcomeName(c.outcome)},
                    {"message", c.message},
                    {"delta_aic", failed ? json() : Num(r.delta_aic)},
@@ -282,7 +263,7 @@ json ProvenanceJson(const ReportInput& in) {
   std::string version = BouncecalVersion(), date = NowIsoDateUtc();
   if (in.provenance) {
     for (const InputFile& f : in.provenance->inputs)
-      inputs.push_back({{"path", f.path}, {"sha256", f.sha256}});
+      inputs.push_back({{"file", f.path}, {"sha256", f.sha256}});
     version = in.provenance->bouncecal_version;
     date = in.provenance->date_utc;
   }
@@ -412,15 +393,16 @@ nlohmann::json ReportDataJson(const ReportInput& input, const ReportDataOptions&
   if (c != nullptr) {
     const Provenance prov =
         input.provenance.value_or(Provenance{{}, BouncecalVersion(), NowIsoDateUtc()});
-    j["fit"] = ParamFileJson(*c, prov, input.options);
+    j["fit"] = CalibrationJson(*c, prov, input.options);
   } else {
     j["fit"] = json();
   }
   j["fit_failure"] = input.fit_failure.empty() ? json() : json(input.fit_failure);
   j["law_comparison"] =
-      input.law_comparison ? LawComparisonJson(*input.law_comparison) : json::array();
-  j["energy"] = c != nullptr && c->outcome != FitOutcome::kFailed ? EnergyJson(*c, input.recordings.empty() ? nullptr : &input.recordings.front())
-                  : json();
+      input.law_comparison ? LawComparisonRowsJson(*input.law_comparison) : json::array();
+  j["energy"] = c != nullptr && c->outcome != FitOutcome::kFailed
+                    ? EnergyJson(*c, input.recordings.empty() ? nullptr : &input.recordings.front())
+                    : json();
   j["provenance"] = ProvenanceJson(input);
   return j;
 }

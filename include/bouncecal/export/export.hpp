@@ -59,7 +59,8 @@ struct ExportResult {
   std::string target;
   std::string scene;
   std::string simulator_version;
-  std::string law;
+  std::string law;          // the law's name
+  nlohmann::json law_json;  // the one law object (io/schema.hpp) as exported
   std::string native_law;
   std::string kind;  // exact, matched, approximated
   bool exact = false;

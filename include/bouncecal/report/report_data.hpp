@@ -1,6 +1,6 @@
 // bouncecal/report/report_data.hpp — the one adapter from the library's result structs to the
 // report: DetectionResult + Analysis + Calibration(s) + law-comparison rows -> one JSON object
-// (schema "bouncecal.report/1") that the HTML page draws and the static figures plot.
+// (schema "bouncecal.report/2") that the HTML page draws and the static figures plot.
 //
 // Everything the report shows passes through ReportDataJson, so a new field in a result struct
 // reaches the page by one edit here. The JSON follows the project's output conventions: keys in
@@ -38,7 +38,7 @@
 
 namespace bouncecal {
 
-inline constexpr const char* kReportSchema = "bouncecal.report/1";
+inline constexpr const char* kReportSchema = "bouncecal.report/2";
 
 struct ReportDataOptions {
   // Min/max envelope bins over the whole recording (each bin one min and one max value).

@@ -107,7 +107,7 @@
     const main = rec.main_sequence;
     const impactPoint = (imp) => ({
       x: imp.time_s, y: Math.max(imp.amplitude || 0, 0.02 * w.peak),
-      xMin: imp.time_s - (imp.sigma_s || 0), xMax: imp.time_s + (imp.sigma_s || 0), imp,
+      xMin: imp.time_s - (imp.time_sigma_s || 0), xMax: imp.time_s + (imp.time_sigma_s || 0), imp,
     });
     const mainImpacts = rec.impacts.filter((i) => i.sequence === main).map(impactPoint);
     const otherImpacts = rec.impacts.filter((i) => i.sequence !== main).map(impactPoint);
@@ -156,7 +156,7 @@
             if (!p.imp) return ctx.dataset.label + ': ' + fmt(p.x, 7) + ' s';
             const i = p.imp;
             return (ctx.dataset.role === 'rejected' ? 'rejected: ' + (i.reason || '') + ', ' : 'impact ' + i.index + ': ') +
-              't = ' + fmt(i.time_s, 8) + ' s ± ' + fmt(i.sigma_s * 1e6, 3) + ' µs, SNR ' + fmt(i.snr_db, 3) + ' dB';
+              't = ' + fmt(i.time_s, 8) + ' s ± ' + fmt(i.time_sigma_s * 1e6, 3) + ' µs, SNR ' + fmt(i.snr_db, 3) + ' dB';
           } } },
         },
       },
@@ -166,7 +166,7 @@
 
   function intervalsChart(rec, ri) {
     const pts = rec.intervals.map((iv) => ({
-      x: iv.index, y: iv.interval_s, yMin: iv.interval_s - (iv.sigma_s || 0), yMax: iv.interval_s + (iv.sigma_s || 0),
+      x: iv.index, y: iv.interval_s, yMin: iv.interval_s - (iv.interval_sigma_s || 0), yMax: iv.interval_s + (iv.interval_sigma_s || 0),
     }));
     const { box, canvas } = chartBox('intervals-' + ri);
     makeChart(canvas, {
@@ -209,25 +209,25 @@
         xMin: b.v_in_m_s - (b.v_in_sigma_m_s || 0), xMax: b.v_in_m_s + (b.v_in_sigma_m_s || 0),
       }));
       datasets.push({ type: 'scatterWithErrorBars', role: 'points',
-        label: 'measured e ± σ' + (data.recordings.length > 1 ? ' (' + rec.path + ')' : ''),
+        label: 'measured e ± σ' + (data.recordings.length > 1 ? ' (' + rec.file + ')' : ''),
         data: pts, backgroundColor: ri === 0 ? C.points : C.others[ri % C.others.length],
         borderColor: ri === 0 ? C.points : C.others[ri % C.others.length], pointRadius: 3, order: 1 });
     });
     const fit = data.fit;
     if (fit && fit.e_of_v && fit.e_of_v.length) {
       const ev = fit.e_of_v.filter((p) => p.e !== null);
-      const hi = ev.map((p) => ({ x: p.v_m_s, y: p.e + (p.sigma || 0) }));
-      const lo = ev.map((p) => ({ x: p.v_m_s, y: p.e - (p.sigma || 0) }));
-      datasets.push({ type: 'line', label: 'fit ' + fit.law + ' e(v) + σ', data: hi, borderColor: 'rgba(0,0,0,0)',
+      const hi = ev.map((p) => ({ x: p.v_m_s, y: p.e + (p.e_sigma || 0) }));
+      const lo = ev.map((p) => ({ x: p.v_m_s, y: p.e - (p.e_sigma || 0) }));
+      datasets.push({ type: 'line', label: 'fit ' + fit.law.name + ' e(v) + σ', data: hi, borderColor: 'rgba(0,0,0,0)',
         backgroundColor: C.band, pointRadius: 0, fill: '+1', order: 3 });
       datasets.push({ type: 'line', label: 'fit band − σ', data: lo, borderColor: 'rgba(0,0,0,0)', pointRadius: 0,
         fill: false, order: 3 });
-      datasets.push({ type: 'line', label: 'fit ' + fit.law + ' e(v)', data: ev.map((p) => ({ x: p.v_m_s, y: p.e })),
+      datasets.push({ type: 'line', label: 'fit ' + fit.law.name + ' e(v)', data: ev.map((p) => ({ x: p.v_m_s, y: p.e })),
         borderColor: C.fit, borderWidth: 2, pointRadius: 0, tension: 0.3, order: 2 });
     }
     data.law_comparison.slice(1).forEach((row, i) => {
       if (!row.e_of_v.length) return;
-      datasets.push({ type: 'line', label: row.law + ' (ΔAIC ' + fmt(row.delta_aic, 3) + ')',
+      datasets.push({ type: 'line', label: row.law.name + ' (ΔAIC ' + fmt(row.delta_aic, 3) + ')',
         data: row.e_of_v.filter((p) => p.e !== null).map((p) => ({ x: p.v_m_s, y: p.e })),
         borderColor: C.others[i % C.others.length], borderDash: [5, 4], borderWidth: 1.5, pointRadius: 0,
         tension: 0.3, order: 4 });
@@ -280,9 +280,9 @@
       (w.time_s !== null ? ' (t = ' + fmt(w.time_s, 7) + ' s)' : '')])));
   }
   function parameterTable(fit) {
-    const names = Object.keys(fit.parameters);
+    const names = Object.keys(fit.law.parameters);
     return table(['parameter', 'value', 'σ', 'unit', 'status'], names.map((n) => {
-      const p = fit.parameters[n];
+      const p = fit.law.parameters[n];
       const status = p.fixed ? 'held' + (p.determined ? ' (the data could fit it)' : '')
         : (p.determined ? 'fitted' : 'not determined') + (p.at_bound ? ', at bound' : '');
       return [n, fmt(p.value, 7), p.sigma === null ? '–' : fmt(p.sigma, 3), p.unit, status];
@@ -296,7 +296,7 @@
   }
   function lawTable() {
     return table(['rank', 'law', 'outcome', 'ΔAIC', 'χ²/dof', 'rms residual'], data.law_comparison.map((r) => [
-      String(r.rank), r.law, r.outcome, fmt(r.delta_aic, 4), fmt(r.chi2_dof, 4),
+      String(r.rank), r.law.name, r.outcome, fmt(r.delta_aic, 4), fmt(r.chi2_dof, 4),
       r.rms_residual === null ? r.message : fmt(r.rms_residual, 4) + ' ' + r.residual_unit]), 3);
   }
   function energyTable(e) {
@@ -308,7 +308,7 @@
   function provenanceBlock() {
     const p = data.provenance;
     const box = el('div');
-    box.appendChild(table(['input', 'sha256'], p.inputs.map((i) => [i.path, i.sha256])));
+    box.appendChild(table(['input', 'sha256'], p.inputs.map((i) => [i.file, i.sha256])));
     box.appendChild(table(['bouncecal version', 'date (UTC)', 'command'],
       [[p.bouncecal_version, p.date_utc, p.command === null ? '–' : p.command]]));
     box.appendChild(el('details', {}, [el('summary', { text: 'options' }),
@@ -324,14 +324,14 @@
 
   // ---- the page ----
   function build() {
-    const files = data.recordings.map((r) => r.path).join(', ');
+    const files = data.recordings.map((r) => r.file).join(', ');
     document.getElementById('subtitle').textContent = files +
-      (data.fit ? ' — law ' + data.fit.law + ', fit ' + data.fit.fit.outcome : ' — no fit');
+      (data.fit ? ' — law ' + data.fit.law.name + ', fit ' + data.fit.fit.outcome : ' — no fit');
     data.recordings.forEach((rec, ri) => {
       const sec = el('section', { id: 'recording-' + ri });
-      sec.appendChild(el('h2', { text: 'Recording ' + rec.path }));
+      sec.appendChild(el('h2', { text: 'Recording ' + rec.file }));
       sec.appendChild(el('p', { class: 'hint', text: fmt(rec.sample_rate_hz, 6) + ' Hz, ' + rec.channels +
-        ' channel(s), channel ' + rec.channel + ' shown, ' + fmt(rec.duration_s, 5) + ' s, ' + rec.format + '; ' +
+        ' channel(s), ' + (rec.channel === null ? 'the mix' : 'channel ' + rec.channel) + ' shown, ' + fmt(rec.duration_s, 5) + ' s, ' + rec.format + '; ' +
         rec.impacts.length + ' impacts detected in ' + rec.sequences.length + ' sequence(s), ' +
         rec.rejected.length + ' rejected candidates' +
         (rec.waveform.windows_dropped ? '; ' + rec.waveform.windows_dropped + ' onset windows beyond the size budget show the envelope only' : '') }));
@@ -361,7 +361,7 @@
       if (data.fit.fit.outcome !== 'converged') {
         fitSec.appendChild(el('p', { class: 'alert', text: 'Fit outcome ' + data.fit.fit.outcome + ': ' + data.fit.fit.message }));
       }
-      fitSec.appendChild(el('p', {}, [el('b', { text: data.fit.law + ': ' }), data.fit.formula]));
+      fitSec.appendChild(el('p', {}, [el('b', { text: data.fit.law.name + ': ' }), data.fit.law.formula]));
       fitSec.appendChild(parameterTable(data.fit));
       fitSec.appendChild(fitStatsTable(data.fit));
     }

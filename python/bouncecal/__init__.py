@@ -184,6 +184,96 @@ def export(params, output, *, to, scene="bounce", force=False, allow_approximati
     return _core.export(_os.fspath(params), _os.fspath(output), opts)
 
 
+def _files(files):
+    """(paths, single): a str/PathLike is one recording (its result is the object itself, as
+    the CLI prints for one file); a list gives a list (one entry per result)."""
+    if files is None:
+        return [], False
+    if isinstance(files, (str, bytes, _os.PathLike)):
+        return [_os.fspath(files)], True
+    return [_os.fspath(f) for f in files], False
+
+
+def _listed(result, single):
+    if single or isinstance(result, list):
+        return result
+    return [result]
+
+
+def detect(files=None, *, channel=None, start=None, end=None, sequence=None, min_snr_db=None,
+           impacts=None, hop_ms=None, no_refine=False):
+    """`bouncecal detect FILE... --json` (schema bouncecal.detect/1): impacts with their
+    time_sigma_s, sequences, removed candidates, channel scores, warnings.
+    files: one path (-> one dict) or a list (-> a list; a failed recording is an entry
+    {"file", "error"} and SomeFailedError is raised with .result = the list).
+    channel: "auto" (default), "mix" or an index; sequence: "main" (default), "all" or an index;
+    impacts: impact-time file(s) instead of detection."""
+    paths, single = _files(files)
+    opts = {}
+    _detect_flags(opts, channel, start, end, sequence, min_snr_db, impacts)
+    _put(opts, "hop_ms", hop_ms, float)
+    _put(opts, "no_refine", no_refine, bool)
+    return _listed(_core.detect(paths, opts), single)
+
+
+def analyze(files=None, *, scene=None, height=None, height_sigma=None, impact_speed=None,
+            diameter=None, density=None, mass=None, material=None, drag=None, buoyancy=False,
+            contact_duration=False, g=None, contact_time=None, channel=None, start=None,
+            end=None, sequence=None, min_snr_db=None, impacts=None):
+    """`bouncecal analyze FILE... --json` (schema bouncecal.analysis/1): per-bounce speeds,
+    restitution e and energy loss eta with sigmas, the summary, assumed values, warnings.
+    One path gives one dict (a list when sequence="all" finds several); a list gives a list."""
+    paths, single = _files(files)
+    opts = {}
+    _detect_flags(opts, channel, start, end, sequence, min_snr_db, impacts)
+    _scene_flags(opts, scene, height, height_sigma, impact_speed, diameter, density, mass,
+                 material, drag, buoyancy, contact_duration, g)
+    _put(opts, "contact_time", contact_time, float)
+    return _listed(_core.analyze(paths, opts), single)
+
+
+def calibrate(files=None, *, scene=None, height=None, height_sigma=None, impact_speed=None,
+              diameter=None, density=None, mass=None, material=None, drag=None, buoyancy=False,
+              contact_duration=False, g=None, law=None, set=None, expression=None, strategy=None,
+              free=None, fix=None, derivatives=None, rtol=None, loss=None, loss_scale=None,
+              max_iterations=None, starts=None, ignore_drop=False, no_scatter=False,
+              channel=None, start=None, end=None, sequence=None, min_snr_db=None, impacts=None,
+              output=None, force=False, jobs=None, batch=False):
+    """`bouncecal calibrate FILE... --json`: the parameter file's object (bouncecal.params/2)
+    with "assumed"; several files are one joint fit. law="all": the law comparison
+    (bouncecal.law_comparison/2); batch=True: one bouncecal.calibration_row/1 per file (a list).
+    output: also write the parameter file (force replaces it).
+    An outcome other than "converged" raises FitOutcomeError (.exit_code 13/14/15, .result the
+    calibration, the file still written); law="all" with no adequate law raises FitFailedError
+    (.result the comparison); batch with failures raises SomeFailedError (.result the rows)."""
+    paths, _ = _files(files)
+    opts = {}
+    _detect_flags(opts, channel, start, end, sequence, min_snr_db, impacts)
+    _scene_flags(opts, scene, height, height_sigma, impact_speed, diameter, density, mass,
+                 material, drag, buoyancy, contact_duration, g)
+    _put(opts, "law", law, str)
+    if set is not None:
+        opts["set"] = _law_sets(set)
+    _put(opts, "expression", expression, str)
+    _put(opts, "strategy", strategy, str)
+    for name, value in (("free", free), ("fix", fix)):
+        if value is not None:
+            opts[name] = [value] if isinstance(value, str) else [str(v) for v in value]
+    _put(opts, "derivatives", derivatives, str)
+    _put(opts, "rtol", rtol, float)
+    _put(opts, "loss", loss, str)
+    _put(opts, "loss_scale", loss_scale, float)
+    _put(opts, "max_iterations", max_iterations, int)
+    _put(opts, "starts", starts, int)
+    _put(opts, "ignore_drop", ignore_drop, bool)
+    _put(opts, "no_scatter", no_scatter, bool)
+    _put(opts, "output", None if output is None else _os.fspath(output), str)
+    _put(opts, "force", force, bool)
+    _put(opts, "jobs", jobs, int)
+    _put(opts, "batch", batch, bool)
+    return _core.calibrate(paths, opts)
+
+
 def read_audio(path):
     """The waveform: {file, sample_rate_hz, channels, frames, duration_s, format, codec, decoder,
     lossy, samples}; samples is a float32 NumPy array [channel, frame] in [-1, 1]."""

@@ -8,6 +8,7 @@
 #include <pybind11/pybind11.h>
 #include <nlohmann/json.hpp>
 
+#include "bouncecal/core/error.hpp"
 #include "detect_flags.hpp"
 #include "scene_flags.hpp"
 
@@ -18,6 +19,18 @@ namespace py = pybind11;
 // JSON -> Python: objects -> dict (key order kept), arrays -> list, numbers -> int/float,
 // null -> None.
 py::object ToPython(const nlohmann::json& j);
+
+// An Error after which the CLI still prints a result (several inputs with failures, a fit whose
+// outcome is not "converged"): the exception's .result holds that result.
+class ErrorWithResult : public Error {
+ public:
+  ErrorWithResult(ErrorCode code, const std::string& message, nlohmann::json result)
+      : Error(code, message), result_(std::move(result)) {}
+  const nlohmann::json& result() const { return result_; }
+
+ private:
+  nlohmann::json result_;
+};
 
 // bouncecal::Error -> the bouncecal.Error subclass of its code (python/bouncecal/_errors.py).
 void RegisterErrorTranslator();

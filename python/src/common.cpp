@@ -40,15 +40,25 @@ py::object ToPython(const nlohmann::json& j) {
   throw Error(ErrorCode::kInternal, "JSON value of an unexpected type (binary)");
 }
 
+namespace {
+
+// The exception object is made by the package (one class per code) and raised as it is.
+void Raise(const Error& e, const py::object& result) {
+  py::object make = py::module_::import("bouncecal._errors").attr("_make_error");
+  py::object exc = make(ErrorCodeName(e.code()), e.exit_code(), e.what(), result);
+  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(exc.ptr())), exc.ptr());
+}
+
+}  // namespace
+
 void RegisterErrorTranslator() {
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
+    } catch (const ErrorWithResult& e) {
+      Raise(e, ToPython(e.result()));
     } catch (const Error& e) {
-      // The exception object is made by the package (one class per code) and raised as is.
-      py::object make = py::module_::import("bouncecal._errors").attr("_make_error");
-      py::object exc = make(ErrorCodeName(e.code()), e.exit_code(), e.what());
-      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(exc.ptr())), exc.ptr());
+      Raise(e, py::none());
     }
   });
 }

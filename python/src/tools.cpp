@@ -7,9 +7,9 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/export/export.hpp"
 #include "bouncecal/io/param_resolved.hpp"
+#include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
-#include "output.hpp"
 
 namespace bouncecal::python {
 namespace {
@@ -27,8 +27,8 @@ LawSpec ListingSpec(const std::string& name) {
   return spec;
 }
 
-// `bouncecal laws --json`: {"laws": [...]}.
-nlohmann::json LawsJson(const std::string& name, const Scene& scene) {
+// `bouncecal laws --json` (bouncecal.laws/1).
+nlohmann::json LawsListing(const std::string& name, const Scene& scene) {
   std::vector<LawInfo> infos = RegisteredLaws();
   if (!name.empty()) {
     std::vector<LawInfo> one;
@@ -37,32 +37,12 @@ nlohmann::json LawsJson(const std::string& name, const Scene& scene) {
     if (one.empty()) CreateLaw(ListingSpec(name), scene);  // throws the "unknown law" error
     infos = one;
   }
-  nlohmann::json laws = nlohmann::json::array();
+  std::vector<nlohmann::json> laws;
   for (const LawInfo& info : infos) {
     const std::unique_ptr<ContactLaw> law = CreateLaw(ListingSpec(info.name), scene);
-    nlohmann::json params = nlohmann::json::array();
-    for (const ParameterSpec& s : law->Parameters()) {
-      params.push_back({{"name", s.name},
-                        {"unit", s.unit},
-                        {"lower", cli::JsonNumber(s.lower)},
-                        {"upper", cli::JsonNumber(s.upper)},
-                        {"default", cli::JsonNumber(s.default_value)},
-                        {"damping", s.damping},
-                        {"description", s.description}});
-    }
-    nlohmann::json entry = {
-        {"name", info.name},
-        {"summary", info.summary},
-        {"formula", law->Formula()},
-        {"source", law->Source()},
-        {"end_rule", law->EndRule() == ContactEnd::kForceZero ? "force_zero" : "overlap_zero"},
-        {"state_size", law->StateSize()},
-        {"parameters", params},
-        {"closed_forms", law->ClosedForms()}};
-    if (info.needs_expression) entry["example_expression"] = ListingSpec(info.name).expression;
-    laws.push_back(entry);
+    laws.push_back(LawListingJson(*law, info.summary, ListingSpec(info.name).expression));
   }
-  return {{"laws", laws}};
+  return LawsJson(laws);
 }
 
 py::object Laws(const py::dict& options) {
@@ -71,42 +51,7 @@ py::object Laws(const py::dict& options) {
   const std::string scene_file = o.TakeString("scene").value_or("");
   o.Finish("laws");
   const Scene scene = scene_file.empty() ? Scene{} : LoadSceneFile(scene_file);
-  return ToPython(LawsJson(name, scene));
-}
-
-// `bouncecal simulate --json`.
-nlohmann::json SimulationJson(const ContactLaw& law, const std::vector<double>& p,
-                              const Simulation& s) {
-  nlohmann::json j;
-  j["law"]["name"] = law.Name();
-  nlohmann::json params = nlohmann::json::object();
-  for (size_t i = 0; i < p.size(); ++i) params[law.Parameters()[i].name] = p[i];
-  j["law"]["parameters"] = params;
-  nlohmann::json impacts = nlohmann::json::array();
-  for (size_t k = 0; k < s.impacts.size(); ++k) {
-    const SimImpact& i = s.impacts[k];
-    impacts.push_back({{"index", k},
-                       {"time_s", i.time_s},
-                       {"v_in_m_s", i.v_in_m_s},
-                       {"v_out_m_s", i.v_out_m_s},
-                       {"e", i.v_in_m_s > 0.0 ? i.v_out_m_s / i.v_in_m_s : 0.0},
-                       {"contact_s", i.contact_s},
-                       {"peak_overlap_m", i.peak_overlap_m},
-                       {"peak_force_n", i.peak_force_n},
-                       {"steps", i.steps}});
-  }
-  j["impacts"] = impacts;
-  const EnergyLedger& e = s.energy;
-  j["energy"] = {{"initial_j", e.initial_j},
-                 {"final_mechanical_j", e.final_mechanical_j},
-                 {"dissipated_contact_j", e.dissipated_contact_j},
-                 {"dissipated_drag_j", e.dissipated_drag_j},
-                 {"internal_j", e.internal_j},
-                 {"balance_error_j", e.balance_error_j}};
-  j["stop_reason"] = StopReasonName(s.stop_reason);
-  j["stop_detail"] = s.stop_detail;
-  j["total_steps"] = s.total_steps;
-  return j;
+  return ToPython(LawsListing(name, scene));
 }
 
 // The scene of simulate: the scene flags, or a parameter file's replay (then no scene flag).
@@ -158,7 +103,7 @@ py::object SimulateBinding(const py::dict& options) {
     py::gil_scoped_release release;
     sim = Simulate(scene, *law, p, sim_options);
   }
-  return ToPython(SimulationJson(*law, p, sim));
+  return ToPython(SimulationJson(scene, *law, p, sim));
 }
 
 py::object ExportBinding(const std::string& params, const std::string& output,

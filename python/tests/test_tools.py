@@ -45,7 +45,9 @@ def test_simulate_scene_file_and_scene_dict_agree():
         "effects.contact_duration": True, "law.name": "hertz-viscoelastic",
         "law.parameters.A": 5.16e-7,
     }
-    assert bouncecal.simulate(scene=as_dict, max_impacts=4) == from_file
+    got = bouncecal.simulate(scene=as_dict, max_impacts=4)
+    assert got["scene"]["source"] == "scene dict"
+    assert dict(got, scene=dict(got["scene"], source=from_file["scene"]["source"])) == from_file
     assert from_file == run_cli("simulate", "--scene", SCENE, "--max-impacts", "4", "--json")
 
 
@@ -90,11 +92,21 @@ def test_export_writes_the_deck_and_returns_the_mapping(params_file, tmp_path):
 
 def test_export_existing_directory_raises_output(params_file, tmp_path):
     out = tmp_path / "deck"
-    bouncecal.export(params_file, out, to="yade")
+    bouncecal.export(params_file, out, to="lammps")
     with pytest.raises(bouncecal.OutputError) as info:
-        bouncecal.export(params_file, out, to="yade")
+        bouncecal.export(params_file, out, to="lammps")
     assert info.value.exit_code == 11
     assert "force" in info.value.message
+
+
+def test_export_inexact_mapping_raises_bad_parameter_naming_the_option(params_file, tmp_path):
+    # Yade's Mindlin betan misses this fit's e(v) by 0.018 > 0.01: refused unless accepted.
+    with pytest.raises(bouncecal.BadParameterError) as info:
+        bouncecal.export(params_file, tmp_path / "y", to="yade")
+    assert info.value.exit_code == 9
+    assert "allow_approximation" in info.value.message
+    got = bouncecal.export(params_file, tmp_path / "y", to="yade", allow_approximation=True)
+    assert got["max_e_error"] > 0.01
 
 
 def test_export_unknown_target_raises_usage(params_file, tmp_path):

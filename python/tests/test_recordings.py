@@ -138,3 +138,28 @@ def test_calibrate_batch_rows_equal_cli_json_lines():
     assert p.returncode == 0, p.stderr
     want = [json.loads(line) for line in p.stdout.splitlines()]
     assert rows == want
+
+
+def test_calibrate_outcome_other_than_converged_raises_with_the_result(tmp_path):
+    out = tmp_path / "params.json"
+    with pytest.raises(bouncecal.FitOutcomeError) as info:
+        bouncecal.calibrate(RECORDING, scene=SCENE, max_iterations=1, starts=1, output=out)
+    e = info.value
+    assert (e.code, e.exit_code) == ("iteration_limit", 13)
+    assert e.result["fit"]["outcome"] == "iteration_limit"
+    # The parameter file is still written and records the outcome, as the CLI does.
+    assert json.loads(out.read_text())["fit"]["outcome"] == "iteration_limit"
+    p = __import__("subprocess").run([str(BINARY), "calibrate", str(RECORDING), "--scene",
+                                      str(SCENE), "--max-iterations", "1", "--starts", "1"],
+                                     capture_output=True, text=True)
+    assert p.returncode == 13
+    assert "bouncecal: " + e.message in p.stderr
+
+
+def test_calibrate_wrong_law_is_a_poor_fit():
+    # The recording was simulated with the viscoelastic Hertz law; Walton-Braun's constant e
+    # cannot follow its e(v) trend (the CLI exits 14).
+    with pytest.raises(bouncecal.FitOutcomeError) as info:
+        bouncecal.calibrate(RECORDING, scene=SCENE, law="walton-braun")
+    assert (info.value.code, info.value.exit_code) == ("poor_fit", 14)
+    assert info.value.result["law"]["name"] == "walton-braun"

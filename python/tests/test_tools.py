@@ -143,3 +143,15 @@ def test_columns_turns_records_into_arrays_with_nan_for_null():
 def test_misspelled_option_is_a_type_error():
     with pytest.raises(TypeError):
         bouncecal.simulate(hieght=0.2)
+
+
+def test_simulate_replays_a_parameter_file_as_the_cli(params_file):
+    got = bouncecal.simulate(params=params_file, max_impacts=3)
+    assert got == run_cli("simulate", "--params", params_file, "--max-impacts", "3", "--json")
+
+
+def test_simulate_params_with_a_scene_option_raises_usage(params_file):
+    with pytest.raises(bouncecal.UsageError) as info:
+        bouncecal.simulate(params=params_file, height=0.3)
+    assert info.value.exit_code == 2
+    assert "cannot be combined" in info.value.message

@@ -63,7 +63,10 @@ void RegisterErrorTranslator() {
   });
 }
 
-Options::Options(const py::dict& d) : d_(py::dict(d)) {}  // a copy: reading removes keys
+// A copy (reading removes keys; the caller's dict stays as it is).
+Options::Options(const py::dict& d) : d_(py::reinterpret_steal<py::dict>(PyDict_Copy(d.ptr()))) {
+  if (!d_) throw py::error_already_set();
+}
 
 std::optional<double> Options::TakeDouble(const char* name) {
   if (!d_.contains(name)) return std::nullopt;

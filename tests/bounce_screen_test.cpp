@@ -193,7 +193,7 @@ TEST(BounceScreen, HeightForArrivalSpeedMatchesClosedForms) {
   EXPECT_NEAR(HeightForArrivalSpeed(s, 2.0), 4.0 / (2 * 9.8), 1e-9);
   s.effects.drag = DragModel::kQuadratic;
   const double vt = FlightModel::FromScene(s).terminal_speed_m_s();
-  // v_in = v_t sqrt(1 - exp(-2 g H / v_t^2)) (PHYSICS.md §2) inverted.
+  // v_in = v_t sqrt(1 - exp(-2 g H / v_t^2)) (docs/physics.md §2) inverted.
   EXPECT_NEAR(HeightForArrivalSpeed(s, 5.0), -vt * vt / (2 * 9.8) * std::log(1 - 25.0 / (vt * vt)),
               1e-9);
   EXPECT_TRUE(std::isnan(HeightForArrivalSpeed(s, 2 * vt)));

@@ -271,7 +271,7 @@ TEST(ParamResolved, FileCarriesEveryPhysicalValueAndReplaysIt) {
   const std::string params = WriteFit(dir, "walton-braun", {{"gamma", 0.3}}, "wb.json");
   const json j = Load(params);
   const json& res = j.at("resolved");
-  // Presets resolved to numbers (steel on copper, PHYSICS.md §1 defaults).
+  // Presets resolved to numbers (steel on copper, docs/physics.md §1 defaults).
   EXPECT_EQ(res["ball"]["youngs_modulus_pa"], 2e11);
   EXPECT_EQ(res["ball"]["poisson_ratio"], 0.29);
   EXPECT_EQ(res["surface"]["youngs_modulus_pa"], 1.2e11);

@@ -27,7 +27,7 @@ std::vector<double> Speeds() {
   return v;
 }
 
-// Acceleration of the model's ODE (PHYSICS.md §2), written independently of flight.cpp.
+// Acceleration of the model's ODE (docs/physics.md §2), written independently of flight.cpp.
 double Accel(const FlightModel& f, double v) {
   const double g = f.gravity_m_s2();
   switch (f.drag()) {
@@ -118,7 +118,7 @@ TEST(FlightTest, VacuumOracles) {
 }
 
 TEST(FlightTest, QuadraticDragClosedFormsFromPhysicsMd) {
-  // PHYSICS.md §2, written literally: t_up = (v_t/g) atan(v0/v_t), H = (v_t^2/2g) ln(1+v0^2/v_t^2),
+  // docs/physics.md §2, written literally: t_up = (v_t/g) atan(v0/v_t), H = (v_t^2/2g) ln(1+v0^2/v_t^2),
   // t_down = (v_t/g) acosh(exp(gH/v_t^2)), v_in = v_t sqrt(1 - exp(-2gH/v_t^2)).
   const double vt = 9.0;
   const FlightModel f = FlightModel::Quadratic(kG, vt);
@@ -321,7 +321,7 @@ TEST(FlightTest, FromSceneUsesTheSceneEffects) {
   const double area = M_PI * 0.01 * 0.01 / 4, mass = 7800 * M_PI * 1e-6 / 6;
   const double vt = std::sqrt(2 * mass * 9.8 / (1.2 * 0.47 * area));
   EXPECT_NEAR(q.terminal_speed_m_s(), vt, 1e-12 * vt);
-  // PHYSICS.md §2: a 1 cm steel ball at 2 m/s feels drag/gravity ~ 0.2 %.
+  // docs/physics.md §2: a 1 cm steel ball at 2 m/s feels drag/gravity ~ 0.2 %.
   EXPECT_NEAR((2 / vt) * (2 / vt), 0.002, 0.0005);
   s.effects.drag = DragModel::kLinear;
   const FlightModel l = FlightModel::FromScene(s);

@@ -1,4 +1,4 @@
-// The Jiang-Liu thermodynamic contact law (seed 000, PHYSICS.md §4): energy balance of eq. 17
+// The Jiang-Liu thermodynamic contact law (seed 000, docs/physics.md §4): energy balance of eq. 17
 // (mechanical + relaxation + heat conserved), e falling with speed (paper Fig. 4), the
 // near-elastic 1 cm steel ball of the paper's prefactors, and the dissipative branch leaving
 // w_r = 0 without a seed. The heat integral is computed here, independently of the law.
@@ -103,7 +103,7 @@ TEST(JiangLiu, RestitutionFallsWithSpeedAsInFig4) {
 }
 
 TEST(JiangLiu, PaperPrefactorsGiveANearlyElasticSteelBall) {
-  // PHYSICS.md §4: with the example prefactor 0.1 a 1 cm steel ball has e ~ 0.999 at 1 m/s.
+  // docs/physics.md §4: with the example prefactor 0.1 a 1 cm steel ball has e ~ 0.999 at 1 m/s.
   const ContactBody body = BodyFromScene(Scene{});
   auto law = MakeJL({});
   const auto p = law->ParameterValues();
@@ -123,7 +123,7 @@ TEST(JiangLiu, PaperPrefactorsGiveANearlyElasticSteelBall) {
 }
 
 TEST(JiangLiu, RelaxationTimeIsTinyComparedWithContact) {
-  // PHYSICS.md §4: tau ~ t_c / 190 for steel (stiff relaxation) with the paper's prefactor.
+  // docs/physics.md §4: tau ~ t_c / 190 for steel (stiff relaxation) with the paper's prefactor.
   const ContactBody body = BodyFromScene(Scene{});
   auto law = MakeJL({});
   const auto p = law->ParameterValues();

@@ -132,7 +132,7 @@ TEST(KinematicsTest, DragRoundTripRecoversRestitution) {
     ASSERT_EQ(a.bounces.size(), e.size() + 1);
     for (size_t k = 0; k < e.size(); ++k) EXPECT_NEAR(a.bounces[k].e, e[k], 1e-12) << k;
     if (c.drag != DragModel::kNone) {
-      // With drag the interval ratio is NOT the restitution (PHYSICS.md §2).
+      // With drag the interval ratio is NOT the restitution (docs/physics.md §2).
       const double ratio = (t[3] - t[2]) / (t[2] - t[1]);
       EXPECT_GT(std::abs(ratio - e[2]), 1e-6);
       // Arrival speed after each flight is below the rebound speed that started it.
@@ -155,7 +155,7 @@ TEST(KinematicsTest, HertzContactTime) {
   const double e_star = 1 / ((1 - 0.29 * 0.29) / 2.0e11 + (1 - 0.34 * 0.34) / 1.2e11);
   const double expect = 2.87 * std::pow(m * m / (r * e_star * e_star * 2.0), 0.2);
   EXPECT_NEAR(HertzContactTime(scene, 2.0), expect, 1e-15);
-  EXPECT_GT(expect, 20e-6);  // "tens of microseconds for steel" (PHYSICS.md §2)
+  EXPECT_GT(expect, 20e-6);  // "tens of microseconds for steel" (docs/physics.md §2)
   EXPECT_LT(expect, 60e-6);
   EXPECT_NEAR(HertzContactTime(scene, 1.0) / HertzContactTime(scene, 32.0), 2.0, 1e-12);
   scene.ball.material = "rubber";

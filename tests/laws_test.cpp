@@ -126,7 +126,7 @@ TEST(LinearDashpot, ForceZeroRuleGivesAbout0808WhenTunedTo08) {
   const double e_zero = oracle::Integrate(*zero_rule, *tuned, body, 1.0).restitution;
   const double e_force = oracle::Integrate(*force_rule, *tuned, body, 1.0).restitution;
   EXPECT_NEAR(e_zero, 0.8, 1e-9);
-  EXPECT_NEAR(e_force, 0.808, 0.001);  // PHYSICS.md §3
+  EXPECT_NEAR(e_force, 0.808, 0.001);  // docs/physics.md §3
   std::printf(
       "[ measured ] linear dashpot tuned to e = 0.8 (overlap-zero rule): %.9f; "
       "force-zero rule: %.6f\n",
@@ -150,7 +150,7 @@ TEST(WaltonBraun, SeedEnergyLossIsTwoGammaOverOnePlusGamma) {
 }
 
 TEST(WaltonBraun, SeedCalibrationInverse) {
-  // PHYSICS.md §1: the exact inverse of eta = 0.58 is gamma = eta/(2 - eta) = 0.408.
+  // docs/physics.md §1: the exact inverse of eta = 0.58 is gamma = eta/(2 - eta) = 0.408.
   auto law = Make("walton-braun", {});
   const ContactBody body = BodyFromScene(SteelScene());
   const double e = std::sqrt(1.0 - 0.58);
@@ -199,7 +199,7 @@ TEST(HertzTsuji, DefaultStiffnessFromMaterials) {
   const double e_star = 1.0 / ((1 - 0.09) / 200e9 + (1 - 0.34 * 0.34) / 120e9);
   const double k = 4.0 / 3.0 * e_star * std::sqrt(0.005);  // Johnson eq. 4.22, R* = R
   EXPECT_NEAR(law->ParameterValues()[0], k, 1e-6 * k);
-  // Hertz contact time of the elastic limit: 2.87 (m*^2/(R* E*^2 v))^(1/5) (PHYSICS.md §2).
+  // Hertz contact time of the elastic limit: 2.87 (m*^2/(R* E*^2 v))^(1/5) (docs/physics.md §2).
   auto elastic = Make("hertz-tsuji", {{"e", 1.0}}, scene);
   const ContactBody body = BodyFromScene(scene);
   const double m = body.mass_kg, v = 1.0;
@@ -259,7 +259,7 @@ TEST(HertzViscoelastic, SchwagerPoschelSeriesAtLowSpeed) {
 
 // ------------------------------------------------------------------------ Hunt-Crossley family
 TEST(HuntCrossley, VariantsMissTheirTarget) {
-  // PHYSICS.md §3: for a target of 0.8, Lankarani-Nikravesh gives ~0.847, Flores ~0.789.
+  // docs/physics.md §3: for a target of 0.8, Lankarani-Nikravesh gives ~0.847, Flores ~0.789.
   const ContactBody body = BodyFromScene(SteelScene());
   const double v0 = 1.98;
   std::map<std::string, double> got;

@@ -3,7 +3,7 @@
 //   bouncecal calibrate X.wav --scene X.toml --law hertz-viscoelastic --json
 // The numbers must be believable: the outcome is converged or poor_fit and the exit code says
 // which; chi2/dof of the full model is ~1 (the scatter absorbs what timing cannot explain);
-// the scatter lies in what real balls show (PHYSICS.md §6); the damping has a finite sigma that
+// the scatter lies in what real balls show (docs/physics.md §6); the damping has a finite sigma that
 // includes the scatter. Known diagnoses fire: the superball's mis-tracked impact 42 is an
 // irregular bounce; a ping-pong recording analysed as if dropped from 0.2 m has an inconsistent
 // drop. Skips when the folder is absent (a user's machine), fails under CI=true.

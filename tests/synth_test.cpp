@@ -78,7 +78,7 @@ TEST(Truth, PowerLawRestitutionUsesTheArrivalSpeed) {
 }
 
 TEST(Truth, QuadraticDragMatchesTheExactFlightFormulas) {
-  // Ping-pong ball: drag matters (PHYSICS.md §2 closed forms, evaluated here independently).
+  // Ping-pong ball: drag matters (docs/physics.md §2 closed forms, evaluated here independently).
   Scene s;
   s.ball.diameter_m = 0.04;
   s.ball.mass_kg = 0.0027;
@@ -135,7 +135,7 @@ TEST(Truth, HertzContactDuration) {
   const double e_star = 1.0 / ((1 - 0.29 * 0.29) / 2.0e11 + (1 - 0.34 * 0.34) / 1.2e11);
   const double tau = 2.87 * std::pow(m * m / (0.005 * e_star * e_star * 1.0), 0.2);
   EXPECT_NEAR(HertzContactDuration(s, 1.0), tau, 1e-9 * tau);
-  EXPECT_GT(tau, 20e-6);  // tens of microseconds for steel (PHYSICS.md §2)
+  EXPECT_GT(tau, 20e-6);  // tens of microseconds for steel (docs/physics.md §2)
   EXPECT_LT(tau, 60e-6);
   EXPECT_NEAR(HertzContactDuration(s, 2.0) / HertzContactDuration(s, 1.0), std::pow(2.0, -0.2),
               1e-12);

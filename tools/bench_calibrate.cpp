@@ -8,7 +8,7 @@
 //     10 s, 48 kHz recording under a nonlinear law, and the `--law all` comparison on it;
 //  3. seed 002's numbers: dt0 = 2 sqrt(2h/g) for h = 0.2 m and the damping for its measured
 //     mean eta = 0.58 (paper: gamma = 0.5 by a five-value sweep; its simulation gave 0.598);
-//  4. the scatter error model (PHYSICS.md §6): bounce sequences rendered with per-bounce
+//  4. the scatter error model (docs/physics.md §6): bounce sequences rendered with per-bounce
 //     restitution scatter sigma_s (0.002, 0.004, 0.01) and 5 us timing noise, truth e(v) from
 //     the independent Boost.Odeint law oracle (tests/law_oracle.hpp, gravity in the contact) and
 //     exact flights: sigma_s recovered, pull RMS of the damping parameter and of the e(v) band

@@ -56,6 +56,137 @@ struct Match {
   int index = -1;
 };
 
+// Perfect detection (the truth onsets themselves): the kinematics alone against the truth.
+void AddExactOnsetErrors(const SynthSpec& spec, const SynthResult& r, Row* row) {
+  const auto& drops = r.recording.drops;
+  // Perfect detection: the truth onsets themselves.
+  for (size_t d = 0; d < drops.size(); ++d) {
+    Sequence exact_seq;
+    for (const RenderedImpact& ri : drops[d]) {
+      Impact imp;
+      imp.time_s = ri.onset_s;
+      exact_seq.impacts.push_back(imp);
+    }
+    Scene scene = spec.scene;
+    if (spec.drops[d].height_m) scene.drop.height_m = spec.drops[d].height_m;
+    AnalysisOptions opt;
+    if (spec.truth.contact_s) opt.contact_time_s = *spec.truth.contact_s;
+    const Analysis a = AnalyzeBounces(exact_seq, scene, opt);
+    Scene naive_scene = scene;
+    naive_scene.effects = Effects{};
+    const Analysis n = AnalyzeBounces(exact_seq, naive_scene, {});
+    for (size_t k = 0; k + 1 < drops[d].size(); ++k) {
+      const double err = a.bounces[k].e - drops[d][k].truth.e();
+      ++row->n_truth;
+      row->sum2_truth += err * err;
+      const double err_ratio = n.bounces[k].e - drops[d][k].truth.e();
+      row->sum2_truth_ratio += err_ratio * err_ratio;
+    }
+  }
+}
+
+// Detected sequences matched to the truth onsets (+-1 ms): e errors where a bounce's three
+// impacts are consecutive truth impacts of one drop, and the mean eta of the first three.
+void AddDetectedErrors(const SynthSpec& spec, const SynthResult& r, const DetectionResult& det,
+                       const std::string& path, Row* row) {
+  const auto& drops = r.recording.drops;
+  for (const Sequence& seq : det.sequences) {
+    // Match detected impacts to truth onsets (+-1 ms).
+    std::vector<Match> m(seq.impacts.size());
+    for (size_t k = 0; k < seq.impacts.size(); ++k) {
+      double best = 1e-3;
+      for (size_t d = 0; d < drops.size(); ++d) {
+        for (size_t j = 0; j < drops[d].size(); ++j) {
+          const double dt = std::abs(seq.impacts[k].time_s - drops[d][j].onset_s);
+          if (dt < best) {
+            best = dt;
+            m[k] = {static_cast<int>(d), static_cast<int>(j)};
+          }
+        }
+      }
+    }
+    if (m.empty() || m[0].drop < 0) continue;
+    const int drop = m[0].drop;
+    Scene scene = spec.scene;
+    const SynthDrop& sd = spec.drops[static_cast<size_t>(drop)];
+    if (sd.height_m) {
+      scene.drop.height_m = sd.height_m;
+      scene.drop.impact_speed_m_s.reset();
+    }
+    AnalysisOptions exact_opt;
+    exact_opt.use_drop = m[0].index == 0;
+    if (spec.truth.contact_s) exact_opt.contact_time_s = *spec.truth.contact_s;
+    Scene naive = scene;
+    naive.effects = Effects{};
+    AnalysisOptions naive_opt;
+    naive_opt.use_drop = exact_opt.use_drop;
+    Analysis exact, ratio;
+    try {
+      exact = AnalyzeBounces(seq, scene, exact_opt);
+      ratio = AnalyzeBounces(seq, naive, naive_opt);
+    } catch (const Error& e) {
+      std::fprintf(stderr, "%s: %s\n", path.c_str(), e.what());
+      continue;
+    }
+    const auto& truth = drops[static_cast<size_t>(drop)];
+    for (size_t k = 0; k + 1 < seq.impacts.size(); ++k) {
+      const Bounce& b = exact.bounces[k];
+      if (!std::isfinite(b.e)) continue;
+      const bool prev_ok =
+          k == 0 ? (m[0].index == 0) : (m[k - 1].drop == drop && m[k].index == m[k - 1].index + 1);
+      const bool next_ok = m[k + 1].drop == drop && m[k + 1].index == m[k].index + 1;
+      if (m[k].drop != drop || !prev_ok || !next_ok) continue;
+      const double e_true = truth[static_cast<size_t>(m[k].index)].truth.e();
+      const double err = b.e - e_true;
+      const double err_ratio = ratio.bounces[k].e - e_true;
+      ++row->n_e;
+      row->sum2 += err * err;
+      row->sum2_ratio += err_ratio * err_ratio;
+      row->max_abs = std::max(row->max_abs, std::abs(err));
+      if (b.e_sigma > 0) row->z2 += (err / b.e_sigma) * (err / b.e_sigma);
+    }
+    if (exact.mean_eta_first3) {
+      double eta_true = 0;
+      bool ok = true;
+      for (int k : exact.mean_eta_indices) {
+        const Match& mk = m[static_cast<size_t>(k)];
+        if (mk.drop != drop) ok = false;
+        if (ok) eta_true += 1 - std::pow(truth[static_cast<size_t>(mk.index)].truth.e(), 2);
+      }
+      if (ok) {
+        ++row->n_eta3;
+        row->eta3_abs += std::abs(*exact.mean_eta_first3 - eta_true / 3);
+      }
+    }
+  }
+}
+
+void PrintRow(const std::string& label, const Row& rw) {
+  const double n = std::max(rw.n_e, 1);
+  std::printf(
+      "%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e %15.3e%s\n", label.c_str(), rw.files,
+      rw.n_e, std::sqrt(rw.sum2 / n), std::sqrt(rw.sum2_ratio / n), rw.max_abs,
+      std::sqrt(rw.z2 / n), rw.n_eta3 ? rw.eta3_abs / rw.n_eta3 : NAN,
+      std::sqrt(rw.sum2_truth / std::max(rw.n_truth, 1)),
+      std::sqrt(rw.sum2_truth_ratio / std::max(rw.n_truth, 1)),
+      rw.failed ? (" (detection failed on " + std::to_string(rw.failed) + ")").c_str() : "");
+}
+
+void Accumulate(const Row& row, Row* total) {
+  total->files += row.files;
+  total->failed += row.failed;
+  total->n_e += row.n_e;
+  total->sum2 += row.sum2;
+  total->sum2_ratio += row.sum2_ratio;
+  total->max_abs = std::max(total->max_abs, row.max_abs);
+  total->z2 += row.z2;
+  total->n_eta3 += row.n_eta3;
+  total->eta3_abs += row.eta3_abs;
+  total->n_truth += row.n_truth;
+  total->sum2_truth += row.sum2_truth;
+  total->sum2_truth_ratio += row.sum2_truth_ratio;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,31 +214,7 @@ int main(int argc, char** argv) {
       const std::string path = (dir / (name + "-" + std::to_string(seed) + ".wav")).string();
       WriteAudio(path, r.recording.channels, r.recording.sample_rate_hz, {"PCM_24"});
       ++row.files;
-      const auto& drops = r.recording.drops;
-      // Perfect detection: the truth onsets themselves.
-      for (size_t d = 0; d < drops.size(); ++d) {
-        Sequence exact_seq;
-        for (const RenderedImpact& ri : drops[d]) {
-          Impact imp;
-          imp.time_s = ri.onset_s;
-          exact_seq.impacts.push_back(imp);
-        }
-        Scene scene = spec.scene;
-        if (spec.drops[d].height_m) scene.drop.height_m = spec.drops[d].height_m;
-        AnalysisOptions opt;
-        if (spec.truth.contact_s) opt.contact_time_s = *spec.truth.contact_s;
-        const Analysis a = AnalyzeBounces(exact_seq, scene, opt);
-        Scene naive_scene = scene;
-        naive_scene.effects = Effects{};
-        const Analysis n = AnalyzeBounces(exact_seq, naive_scene, {});
-        for (size_t k = 0; k + 1 < drops[d].size(); ++k) {
-          const double err = a.bounces[k].e - drops[d][k].truth.e();
-          ++row.n_truth;
-          row.sum2_truth += err * err;
-          const double err_ratio = n.bounces[k].e - drops[d][k].truth.e();
-          row.sum2_truth_ratio += err_ratio * err_ratio;
-        }
-      }
+      AddExactOnsetErrors(spec, r, &row);
       DetectionResult det;
       try {
         det = DetectImpacts(ReadAudio(path), DetectOptions{});
@@ -116,99 +223,10 @@ int main(int argc, char** argv) {
         ++row.failed;
         continue;
       }
-      for (const Sequence& seq : det.sequences) {
-        // Match detected impacts to truth onsets (+-1 ms).
-        std::vector<Match> m(seq.impacts.size());
-        for (size_t k = 0; k < seq.impacts.size(); ++k) {
-          double best = 1e-3;
-          for (size_t d = 0; d < drops.size(); ++d) {
-            for (size_t j = 0; j < drops[d].size(); ++j) {
-              const double dt = std::abs(seq.impacts[k].time_s - drops[d][j].onset_s);
-              if (dt < best) {
-                best = dt;
-                m[k] = {static_cast<int>(d), static_cast<int>(j)};
-              }
-            }
-          }
-        }
-        if (m.empty() || m[0].drop < 0) continue;
-        const int drop = m[0].drop;
-        Scene scene = spec.scene;
-        const SynthDrop& sd = spec.drops[static_cast<size_t>(drop)];
-        if (sd.height_m) {
-          scene.drop.height_m = sd.height_m;
-          scene.drop.impact_speed_m_s.reset();
-        }
-        AnalysisOptions exact_opt;
-        exact_opt.use_drop = m[0].index == 0;
-        if (spec.truth.contact_s) exact_opt.contact_time_s = *spec.truth.contact_s;
-        Scene naive = scene;
-        naive.effects = Effects{};
-        AnalysisOptions naive_opt;
-        naive_opt.use_drop = exact_opt.use_drop;
-        Analysis exact, ratio;
-        try {
-          exact = AnalyzeBounces(seq, scene, exact_opt);
-          ratio = AnalyzeBounces(seq, naive, naive_opt);
-        } catch (const Error& e) {
-          std::fprintf(stderr, "%s: %s\n", path.c_str(), e.what());
-          continue;
-        }
-        const auto& truth = drops[static_cast<size_t>(drop)];
-        for (size_t k = 0; k + 1 < seq.impacts.size(); ++k) {
-          const Bounce& b = exact.bounces[k];
-          if (!std::isfinite(b.e)) continue;
-          const bool prev_ok = k == 0 ? (m[0].index == 0)
-                                      : (m[k - 1].drop == drop && m[k].index == m[k - 1].index + 1);
-          const bool next_ok = m[k + 1].drop == drop && m[k + 1].index == m[k].index + 1;
-          if (m[k].drop != drop || !prev_ok || !next_ok) continue;
-          const double e_true = truth[static_cast<size_t>(m[k].index)].truth.e();
-          const double err = b.e - e_true;
-          const double err_ratio = ratio.bounces[k].e - e_true;
-          ++row.n_e;
-          row.sum2 += err * err;
-          row.sum2_ratio += err_ratio * err_ratio;
-          row.max_abs = std::max(row.max_abs, std::abs(err));
-          if (b.e_sigma > 0) row.z2 += (err / b.e_sigma) * (err / b.e_sigma);
-        }
-        if (exact.mean_eta_first3) {
-          double eta_true = 0;
-          bool ok = true;
-          for (int k : exact.mean_eta_indices) {
-            const Match& mk = m[static_cast<size_t>(k)];
-            if (mk.drop != drop) ok = false;
-            if (ok) eta_true += 1 - std::pow(truth[static_cast<size_t>(mk.index)].truth.e(), 2);
-          }
-          if (ok) {
-            ++row.n_eta3;
-            row.eta3_abs += std::abs(*exact.mean_eta_first3 - eta_true / 3);
-          }
-        }
-      }
+      AddDetectedErrors(spec, r, det, path, &row);
     }
-    auto print = [](const std::string& label, const Row& rw) {
-      const double n = std::max(rw.n_e, 1);
-      std::printf(
-          "%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e %15.3e%s\n", label.c_str(),
-          rw.files, rw.n_e, std::sqrt(rw.sum2 / n), std::sqrt(rw.sum2_ratio / n), rw.max_abs,
-          std::sqrt(rw.z2 / n), rw.n_eta3 ? rw.eta3_abs / rw.n_eta3 : NAN,
-          std::sqrt(rw.sum2_truth / std::max(rw.n_truth, 1)),
-          std::sqrt(rw.sum2_truth_ratio / std::max(rw.n_truth, 1)),
-          rw.failed ? (" (detection failed on " + std::to_string(rw.failed) + ")").c_str() : "");
-    };
-    print(name, row);
-    total.files += row.files;
-    total.failed += row.failed;
-    total.n_e += row.n_e;
-    total.sum2 += row.sum2;
-    total.sum2_ratio += row.sum2_ratio;
-    total.max_abs = std::max(total.max_abs, row.max_abs);
-    total.z2 += row.z2;
-    total.n_eta3 += row.n_eta3;
-    total.eta3_abs += row.eta3_abs;
-    total.n_truth += row.n_truth;
-    total.sum2_truth += row.sum2_truth;
-    total.sum2_truth_ratio += row.sum2_truth_ratio;
+    PrintRow(name, row);
+    Accumulate(row, &total);
   }
   std::printf("%-14s %5d %5d %11.3e %11.3e %9.2e %6.2f %9.2e %11.3e %15.3e\n", "all", total.files,
               total.n_e, std::sqrt(total.sum2 / std::max(total.n_e, 1)),

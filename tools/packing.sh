@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The seed paper's packing validation (seed 002, PHYSICS.md §1; issue 12) run through
+# The seed paper's packing validation (seed 002, docs/physics.md §1; issue 12) run through
 # `bouncecal export --scene packing`: 2000 spheres (d = 1 cm, 7800 kg/m^3) poured from a 20 cm
 # hopper into a cylinder of radius 10 cm, k_n = k_s = 1e7 N/m, mu = 0.3, the fitted damping.
 # Prints a Markdown table: packing density between z = 0.005 and 0.045 m (paper: 0.625; classic

@@ -1,6 +1,12 @@
 // Decoding through FFmpeg's libraries (libavformat, libavcodec, libswresample): the formats
 // phones write (m4a/AAC from iPhone Voice Memos and most Android recorders, 3gp/AMR, opus in
 // webm/ogg, ...) that libsndfile cannot read. See include/bouncecal/acoustic/audio.hpp.
+//
+// Built as its own module, libbouncecal_ffmpeg.so, which the library loads the first time a
+// file needs it (src/acoustic/ffmpeg_module.cpp): FFmpeg pulls in 134 shared libraries, whose
+// loading and relocation cost every process ~0.1 s of CPU when linked directly. The module's
+// one entry point, bouncecal_ffmpeg_decode_v1, returns errors as a code and a message (no
+// exception crosses the module boundary).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -71,9 +77,7 @@ void Append(Sink* s, const AVFrame* frame) {
   }
 }
 
-}  // namespace
-
-Audio ReadAudioFfmpeg(const std::string& path) {
+Audio Decode(const std::string& path) {
   av_log_set_level(AV_LOG_QUIET);  // our messages only
   AVFormatContext* raw = nullptr;
   int rc = avformat_open_input(&raw, path.c_str(), nullptr, nullptr);
@@ -158,4 +162,23 @@ Audio ReadAudioFfmpeg(const std::string& path) {
   return a;
 }
 
+}  // namespace
 }  // namespace bouncecal
+
+extern "C" __attribute__((visibility("default"))) int bouncecal_ffmpeg_decode_v1(
+    const char* path, bouncecal::Audio* out, int* exit_code, char* message,
+    std::size_t message_size) {
+  std::string why;
+  try {
+    *out = bouncecal::Decode(path);
+    return 0;
+  } catch (const bouncecal::Error& e) {
+    *exit_code = e.exit_code();
+    why = e.what();
+  } catch (const std::exception& e) {
+    *exit_code = static_cast<int>(bouncecal::ErrorCode::kInternal);
+    why = std::string(path) + ": FFmpeg decoding: " + e.what();
+  }
+  std::snprintf(message, message_size, "%s", why.c_str());
+  return 1;
+}

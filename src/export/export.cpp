@@ -53,7 +53,7 @@ constexpr double kStepsPerContactStart = 50.0;
 constexpr int kMaxHalvings = 12;
 // Packing: the seed paper's dt = 10 us is t_c / 4.5 for its spheres; we take t_c / 10.
 constexpr double kPackingStepsPerContact = 10.0;
-// The density slab of the seed paper's packing validation (PHYSICS.md §1).
+// The density slab of the seed paper's packing validation (docs/physics.md §1).
 constexpr double kSlabLow_m = 0.005, kSlabHigh_m = 0.045;
 
 std::string Capture(const std::string& command) {

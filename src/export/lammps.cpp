@@ -70,7 +70,7 @@ std::string LammpsBounceDeck(const DeckInput& in) {
 }
 
 std::string LammpsPackingDeck(const DeckInput& in) {
-  // Seed 002's validation scene (PHYSICS.md §1): k_n = k_s = 1e7 N/m, mu = 0.3, the fitted e.
+  // Seed 002's validation scene (docs/physics.md §1): k_n = k_s = 1e7 N/m, mu = 0.3, the fitted e.
   // gran/hooke/history damps with m* gamma_n: the same e needs gamma_n = 2 zeta sqrt(kn/m*),
   // m* = m/2 between spheres and m* = m against the walls.
   const double kn = 1e7, mu = 0.3, d = 0.01, rho = 7800.0;

@@ -108,7 +108,7 @@ std::string LiggghtsBounceDeck(const DeckInput& in) {
 }
 
 std::string LiggghtsPackingDeck(const DeckInput& in) {
-  // PHYSICS.md §1: k_n = k_s = 1e7 N/m, mu = 0.3; hooke/stiffness damps with m* gamman, so the
+  // docs/physics.md §1: k_n = k_s = 1e7 N/m, mu = 0.3; hooke/stiffness damps with m* gamman, so the
   // same e needs gamman = 2 zeta sqrt(kn/m*): m* = m/2 between spheres (types 1-1), m against
   // the walls (types 1-2).
   const double kn = 1e7, mu = 0.3, d = 0.01, rho = 7800.0;

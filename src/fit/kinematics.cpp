@@ -3,7 +3,7 @@
 // Notation: onsets t_0 < t_1 < ... (sigma s_k each, independent), interval I_k = t_{k+1} - t_k,
 // contact duration tau_k of impact k (0 unless the scene's contact_duration effect is on),
 // flight time T_k = I_k - tau_k (the ball leaves the plate tau_k after the onset and touches it
-// again at the next onset). With the scene's flight model F (flight.hpp, PHYSICS.md §2):
+// again at the next onset). With the scene's flight model F (flight.hpp, docs/physics.md §2):
 //   v_out,k   = F^-1(T_k)                       (exact inversion of the flight time)
 //   v_in,k+1  = A(v_out,k)                      (arrival speed after that flight)
 //   e_k = v_out,k / v_in,k,   eta_k = 1 - e_k^2 (seed 002 eqs. 11-12)
@@ -27,6 +27,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <optional>
 #include <string>
 
 #include "bouncecal/core/error.hpp"
@@ -73,24 +74,15 @@ bool AnalysisOptions::IsValid(std::string* error) const {
 }
 
 double HertzContactTime(const Scene& scene, double impact_speed_m_s) {
-  const double e1 = scene.ball.ResolvedYoungsModulusPa();
-  const double nu1 = scene.ball.ResolvedPoissonRatio();
-  const double e2 = scene.surface.ResolvedYoungsModulusPa();
-  const double nu2 = scene.surface.ResolvedPoissonRatio();
-  if (!std::isfinite(e1) || !std::isfinite(nu1)) {
-    throw Error(ErrorCode::kBadScene,
-                (scene.source.empty() ? "" : scene.source + ": ") +
-                    "ball.youngs_modulus_pa/poisson_ratio: unknown for material \"" +
-                    scene.ball.material + "\" (needed for the Hertz contact duration)");
+  // Effective modulus (the one rule: EffectiveModulusPa, scene.hpp) and mass (Johnson, Contact
+  // Mechanics, 1985, §4.2 and §11.4).
+  std::string why;
+  const std::optional<double> e_star_pa = EffectiveModulusPa(scene, &why);
+  if (!e_star_pa) {
+    throw Error(ErrorCode::kBadScene, (scene.source.empty() ? "" : scene.source + ": ") + why +
+                                          " (needed for the Hertz contact duration)");
   }
-  if (!std::isfinite(e2) || !std::isfinite(nu2)) {
-    throw Error(ErrorCode::kBadScene,
-                (scene.source.empty() ? "" : scene.source + ": ") +
-                    "surface.youngs_modulus_pa/poisson_ratio: unknown for material \"" +
-                    scene.surface.material + "\" (needed for the Hertz contact duration)");
-  }
-  // Effective modulus and mass (Johnson, Contact Mechanics, 1985, §4.2 and §11.4).
-  const double e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
+  const double e_star = *e_star_pa;
   const double m = scene.ball.Mass();
   double m_star = m;
   if (scene.effects.surface_compliance && scene.surface.mass_kg > 0.0) {
@@ -98,7 +90,7 @@ double HertzContactTime(const Scene& scene, double impact_speed_m_s) {
   }
   const double r_star = scene.ball.Radius();
   const double v = std::max(impact_speed_m_s, 1e-12);
-  // tau = 2.94 delta_max / v = 2.87 (m*^2 / (R* E*^2 v))^(1/5)  (PHYSICS.md §2; Johnson,
+  // tau = 2.94 delta_max / v = 2.87 (m*^2 / (R* E*^2 v))^(1/5)  (docs/physics.md §2; Johnson,
   // Contact Mechanics, 1985, §11.4).
   return 2.87 * std::pow(m_star * m_star / (r_star * e_star * e_star * v), 0.2);
 }

@@ -1,4 +1,4 @@
-// The per-bounce scatter error model (scatter_model.hpp; PHYSICS.md §6).
+// The per-bounce scatter error model (scatter_model.hpp; docs/physics.md §6).
 //
 // Covariance of the per-bounce residuals r_k = e(u_k; theta) - e_k, first order in the onset
 // times t_j and the drop height h:

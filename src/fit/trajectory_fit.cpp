@@ -4,7 +4,7 @@
 // Residuals per recording: r_j = t0 + s_j(theta, v0) - t_j (model - measured, s), covariance
 //   C = diag(sigma_t^2) + sigma_s^2 G G^T,   G_jk = d s_j / d eps_k
 // where eps_k perturbs bounce k's restitution: v_out,k = (e(u_k) + eps_k) u_k, and the change
-// runs through every later flight (PHYSICS.md §2 flight formulas, the law's e'(u) at each later
+// runs through every later flight (docs/physics.md §2 flight formulas, the law's e'(u) at each later
 // impact). sigma_s comes from the restitution fit. G is computed at the start and again at the
 // optimum (one refit). A stated drop with sigma ties v0 through a prior residual
 // (v0 - v_drop) / sigma_v; an exact one holds v0.
@@ -198,7 +198,7 @@ class TrajectoryModel {
   }
 
   // d s_k / d(theta, v0) by the chain rule through the law's closed-form e(v) and the exact
-  // flight formulas (PHYSICS.md §2): v_out,k = e(v_in,k) v_in,k, s_{k+1} = s_k + T(v_out,k) +
+  // flight formulas (docs/physics.md §2): v_out,k = e(v_in,k) v_in,k, s_{k+1} = s_k + T(v_out,k) +
   // t_c(v_in,k), v_in,k+1 = A(v_out,k). Exact for closed-form contacts; for integrated laws it
   // neglects gravity during the contact (a small Jacobian error only: residuals always come
   // from the simulator, so the optimum is unaffected to first order).

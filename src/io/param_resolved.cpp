@@ -2,6 +2,7 @@
 #include "bouncecal/io/param_resolved.hpp"
 
 #include <cmath>
+#include <optional>
 #include <cstdio>
 #include <cstdlib>
 
@@ -26,15 +27,11 @@ std::string Text(double v) {
   return buf;
 }
 
-// E* of ball on surface (Johnson eq. 4.22); NaN when the ball has no elastic constants. A
-// surface without constants counts as rigid (its compliance term is 0), as the Hertz laws do.
+// E* of ball on surface: the one rule (EffectiveModulusPa, scene.hpp); NaN (null in the file)
+// when either body's elastic constants are unknown.
 double EffectiveModulus(const Scene& s) {
-  const double eb = s.ball.ResolvedYoungsModulusPa(), nb = s.ball.ResolvedPoissonRatio();
-  if (!(eb > 0.0) || !std::isfinite(nb)) return std::nan("");
-  double compliance = (1.0 - nb * nb) / eb;
-  const double es = s.surface.ResolvedYoungsModulusPa(), ns = s.surface.ResolvedPoissonRatio();
-  if (es > 0.0 && std::isfinite(ns)) compliance += (1.0 - ns * ns) / es;
-  return 1.0 / compliance;
+  const std::optional<double> e_star = EffectiveModulusPa(s, nullptr);
+  return e_star ? *e_star : std::nan("");
 }
 
 // The drag-free release height (ball bottom) that arrives at v: v^2 / 2g.

@@ -945,7 +945,7 @@ double EstimateContactTime(const ContactLaw& law, std::span<const double> p,
       const double mid = std::sqrt(lo * hi);
       (ElasticAt(dynamics, s0.data(), mid) < target ? lo : hi) = mid;
     }
-    // Linear spring: t_c = pi delta_max / v; Hertz: 2.94 delta_max / v (PHYSICS.md §2).
+    // Linear spring: t_c = pi delta_max / v; Hertz: 2.94 delta_max / v (docs/physics.md §2).
     return 3.0 * hi / v_in_m_s;
   }
   // No usable elastic energy (a purely dissipative user law): the time to cross 1e-3 R.

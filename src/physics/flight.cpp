@@ -1,4 +1,4 @@
-// Exact vertical flight between impacts: PHYSICS.md §2.
+// Exact vertical flight between impacts: docs/physics.md §2.
 //
 // Equations of motion (z up, v = dz/dt, g = effective gravity incl. buoyancy):
 //   vacuum:     dv/dt = -g
@@ -10,7 +10,7 @@
 // reduces smoothly to the vacuum result as v_t -> infinity (atan/asinh/log1p/expm1 forms and
 // short series where a difference of nearly equal terms would cancel).
 //
-// Quadratic drag, x = v0 / v_t (e.g. Timoshenko & Young, "Advanced Dynamics", §2; PHYSICS.md §2):
+// Quadratic drag, x = v0 / v_t (e.g. Timoshenko & Young, "Advanced Dynamics", §2; docs/physics.md §2):
 //   t_up   = (v_t/g) atan(x)                 apex H = (v_t^2 / 2g) ln(1 + x^2)
 //   t_down = (v_t/g) acosh(exp(gH/v_t^2)) = (v_t/g) asinh(x)      (since exp(gH/v_t^2) =
 //   sqrt(1+x^2)) v_in   = v_t sqrt(1 - exp(-2gH/v_t^2)) = v0 / sqrt(1 + x^2)
@@ -195,7 +195,7 @@ FlightModel FlightModel::FromScene(const Scene& scene) {
     case DragModel::kNone:
       return Vacuum(g);
     case DragModel::kQuadratic: {
-      // v_t = sqrt(2 m g_eff / (rho_a C_d A)), A = pi d^2 / 4 (PHYSICS.md §2).
+      // v_t = sqrt(2 m g_eff / (rho_a C_d A)), A = pi d^2 / 4 (docs/physics.md §2).
       const double area_m2 = M_PI * ball.diameter_m * ball.diameter_m / 4.0;
       const double denom = env.air_density_kg_m3 * env.drag_coefficient * area_m2;
       if (denom <= 0.0) return Vacuum(g);  // no air: no drag

@@ -53,17 +53,17 @@ constexpr ContactEnd kForce = ContactEnd::kForceZero;
 // Tests pick the law up from the table (the oracle comparison, the derivative checks, the
 // registry consistency test: the closed forms the row lists must exist). Parameters are set by
 // name by CreateLaw (unknown names, NaN, out-of-bounds values are rejected there), so a law only
-// declares them. Keep the rows in the order of PHYSICS.md §3.
+// declares them. Keep the rows in the order of docs/physics.md §3.
 // ================================================================================================
 // (At namespace laws scope, not in an unnamed namespace: `MakeLaw<class L>` declares L in the
 // enclosing namespace, where the law's file defines it.)
 static const LawRow kLaws[] = {
     {"linear-dashpot", "linear spring-dashpot (Cundall-Strack), contact ends at overlap 0",
-     "F = k d + c d'", "Cundall & Strack 1979; closed form: damped oscillator (PHYSICS.md §3)",
+     "F = k d + c d'", "Cundall & Strack 1979; closed form: damped oscillator (docs/physics.md §3)",
      kOverlap, false, kAllLinear, MakeLaw<class LinearDashpot>},
     {"linear-dashpot-force-zero",
      "linear spring-dashpot, contact ends when the force reaches 0 (ball detaches early)",
-     "F = k d + c d'", "Cundall & Strack 1979; closed form: damped oscillator (PHYSICS.md §3)",
+     "F = k d + c d'", "Cundall & Strack 1979; closed form: damped oscillator (docs/physics.md §3)",
      kForce, false, kAllLinear, MakeLaw<class LinearDashpot>},
     {"walton-braun", "seed 002's law: (1+gamma) k loading, (1-gamma) k unloading",
      "F = (1 + gamma) k d if d' > 0, (1 - gamma) k d otherwise",
@@ -71,7 +71,7 @@ static const LawRow kLaws[] = {
      kAllLinear, MakeLaw<class WaltonBraun>},
     {"walton-braun-hysteretic", "Walton-Braun hysteresis: load k1, unload k2 with plastic offset",
      "F = k1 d loading, k2 (d - d0) unloading, d0 = dmax (1 - k1/k2)",
-     "Walton & Braun, J. Rheol. 30 (1986) 949; e^2 = k1/k2 (PHYSICS.md §3)", kForce, false,
+     "Walton & Braun, J. Rheol. 30 (1986) 949; e^2 = k1/k2 (docs/physics.md §3)", kForce, false,
      kAllLinear, MakeLaw<class WaltonBraunHysteretic>},
     {"hertz-tsuji", "Hertz + viscous damping d^1/4 (Tsuji 1992), speed-independent e",
      "F = k d^1.5 + alpha(e) sqrt(m* k) d^0.25 d'",
@@ -179,7 +179,7 @@ std::string ExpressionLawName() {
 }
 
 ContactBody BodyFromScene(const Scene& scene) {
-  // A ball on a rigid wall: m* = m, R* = R (PHYSICS.md §3, mass conventions). The surface
+  // A ball on a rigid wall: m* = m, R* = R (docs/physics.md §3, mass conventions). The surface
   // compliance effect (plate on a spring) is handled by the simulator, not by the law's body.
   return ContactBody::BallOnRigidWall(scene.ball.Mass(), scene.ball.Radius());
 }

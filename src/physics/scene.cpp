@@ -226,7 +226,7 @@ std::optional<double> EffectiveModulusPa(const Scene& scene, std::string* why) {
 }
 
 double Scene::EffectiveGravity() const {
-  // Archimedes: g_eff = g (1 - rho_air / rho_ball), PHYSICS.md §2.
+  // Archimedes: g_eff = g (1 - rho_air / rho_ball), docs/physics.md §2.
   if (!effects.buoyancy) return environment.g_m_s2;
   return environment.g_m_s2 * (1.0 - environment.air_density_kg_m3 / ball.Density());
 }

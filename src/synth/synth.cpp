@@ -621,10 +621,12 @@ double Recording::duration_s() const {
   return static_cast<double>(channels[0].size()) / sample_rate_hz;
 }
 
-Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
-                          const RenderOptions& options) {
-  std::string err;
-  if (!options.IsValid(&err)) throw Error(ErrorCode::kBadParameter, err);
+namespace {
+
+// The latest onset of any impact in any channel (s); throws Error(kBadParameter) naming the
+// first impact whose time, speeds or contact time are not physical.
+double CheckImpacts(const std::vector<std::vector<TruthImpact>>& drops,
+                    const RenderOptions& options) {
   double last_onset = 0.0;
   for (std::size_t d = 0; d < drops.size(); ++d) {
     for (std::size_t k = 0; k < drops[d].size(); ++k) {
@@ -647,34 +649,29 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
   }
   double max_delay = 0.0;
   for (const ChannelSpec& c : options.channels) max_delay = std::max(max_delay, c.delay_s);
-  last_onset += options.latency_s + max_delay;
-  const double rate = options.sample_rate_hz;
-  std::size_t impact_count = 0;
-  for (const auto& d : drops) impact_count += d.size();
+  return last_onset + options.latency_s + max_delay;
+}
+
+// The recording's length (s): duration_s, or the last onset plus tail_s.
+double RecordingLength(double last_onset, std::size_t impact_count, const RenderOptions& options) {
   if (impact_count == 0 && !(options.duration_s > 0)) {
     throw Error(ErrorCode::kBadParameter,
                 "render: no impacts; give duration_s to render noise, hum and distractors only");
   }
-  double duration = options.duration_s > 0 ? options.duration_s : last_onset + options.tail_s;
   if (options.duration_s > 0 && last_onset >= options.duration_s) {
     throw Error(ErrorCode::kBadParameter,
                 "render options: duration_s = " + Num(options.duration_s) +
                     " ends before the last impact at " + Num(last_onset) + " s");
   }
-  const auto n_samples = static_cast<std::size_t>(std::ceil(duration * rate));
-  if (n_samples == 0) throw Error(ErrorCode::kBadParameter, "render options: empty recording");
+  return options.duration_s > 0 ? options.duration_s : last_onset + options.tail_s;
+}
 
+// Each channel's modes: the plate's and the ball's, with the channel's random gain spread.
+std::vector<std::vector<Mode>> ChannelModes(const RenderOptions& options) {
   std::vector<Mode> modes = options.plate_modes;
   modes.insert(modes.end(), options.ball_modes.begin(), options.ball_modes.end());
-  auto strength = [&](const TruthImpact& i) {
-    return std::pow(i.v_in_m_s, options.amplitude_exponent);
-  };
-
-  // Clean sound per channel (unit scale).
-  const std::size_t nch = options.channels.size();
-  std::vector<std::vector<double>> clean(nch, std::vector<double>(n_samples, 0.0));
-  std::vector<std::vector<Mode>> channel_modes(nch, modes);
-  for (std::size_t c = 0; c < nch; ++c) {
+  std::vector<std::vector<Mode>> channel_modes(options.channels.size(), modes);
+  for (std::size_t c = 0; c < options.channels.size(); ++c) {
     if (options.channels[c].mode_spread_db > 0.0) {
       Rng rng = Stream(options.seed, kModeSpread, c);
       for (Mode& m : channel_modes[c]) {
@@ -682,50 +679,58 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
       }
     }
   }
+  return channel_modes;
+}
+
+// An impact's sound strength (unit scale): v_in^amplitude_exponent.
+double Strength(const TruthImpact& i, const RenderOptions& options) {
+  return std::pow(i.v_in_m_s, options.amplitude_exponent);
+}
+
+// The clean sound of every impact and its echoes, per channel, at unit scale.
+std::vector<std::vector<double>> RenderClean(const std::vector<std::vector<TruthImpact>>& drops,
+                                             const std::vector<std::vector<Mode>>& channel_modes,
+                                             std::size_t n_samples, const RenderOptions& options) {
+  const std::size_t nch = options.channels.size();
+  std::vector<std::vector<double>> clean(nch, std::vector<double>(n_samples, 0.0));
   for (std::size_t c = 0; c < nch; ++c) {
     std::vector<Event> events;
     for (const auto& drop : drops) {
       for (const TruthImpact& i : drop) {
         const double onset = i.time_s + options.latency_s + options.channels[c].delay_s;
-        events.push_back(Event{onset, i.contact_s, strength(i)});
+        events.push_back(Event{onset, i.contact_s, Strength(i, options)});
         for (const Echo& echo : options.echoes) {
-          events.push_back(Event{onset + echo.delay_s, i.contact_s, strength(i) * echo.gain});
+          events.push_back(
+              Event{onset + echo.delay_s, i.contact_s, Strength(i, options) * echo.gain});
         }
       }
     }
-    RenderEvents(events, channel_modes[c], options.click_gain, rate, &clean[c]);
+    RenderEvents(events, channel_modes[c], options.click_gain, options.sample_rate_hz, &clean[c]);
   }
-  double unit_peak = 0.0;
-  for (std::size_t c = 0; c < nch; ++c) {
-    for (double v : clean[c]) unit_peak = std::max(unit_peak, std::fabs(v));
-  }
-  if (impact_count > 0 && !(unit_peak > 0.0)) {
-    throw Error(ErrorCode::kBadParameter, "render: the impacts make no sound");
-  }
-  // Without impacts the levels (noise, hum, distractors) stay relative to peak_level.
-  const double scale = impact_count > 0 ? options.peak_level / unit_peak : 0.0;
+  return clean;
+}
 
-  Recording rec;
-  rec.sample_rate_hz = rate;
-  rec.clean_peak = options.peak_level;
-  const double noise_rms =
-      options.snr_db ? options.peak_level * std::pow(10.0, -*options.snr_db / 20.0) : 0.0;
-  rec.noise_rms = noise_rms;
-
-  // Per-impact truth: own clean peak in each channel (rendered alone over its first 5 ms).
+// Per-impact truth: each impact's own clean peak in each channel (rendered alone over its first
+// 5 ms), scaled like the mix, its SNR and whether it clips.
+std::vector<std::vector<RenderedImpact>> ImpactTruth(
+    const std::vector<std::vector<TruthImpact>>& drops,
+    const std::vector<std::vector<Mode>>& channel_modes, double scale, double noise_rms,
+    const RenderOptions& options) {
+  const double rate = options.sample_rate_hz;
   const double window_s = 5e-3;
+  std::vector<std::vector<RenderedImpact>> out;
   for (const auto& drop : drops) {
     std::vector<RenderedImpact> rd;
     for (const TruthImpact& i : drop) {
       RenderedImpact r;
       r.truth = i;
       r.onset_s = i.time_s + options.latency_s + options.channels[0].delay_s;
-      for (std::size_t c = 0; c < nch; ++c) {
+      for (std::size_t c = 0; c < options.channels.size(); ++c) {
         const double onset = i.time_s + options.latency_s + options.channels[c].delay_s;
         const double t0 = std::floor(onset * rate) / rate;
         std::vector<double> own(
             static_cast<std::size_t>(std::ceil((window_s + i.contact_s) * rate)) + 2, 0.0);
-        RenderEvents({Event{onset - t0, i.contact_s, strength(i)}}, channel_modes[c],
+        RenderEvents({Event{onset - t0, i.contact_s, Strength(i, options)}}, channel_modes[c],
                      options.click_gain, rate, &own);
         double pk = 0.0;
         for (double v : own) pk = std::max(pk, std::fabs(v));
@@ -739,71 +744,122 @@ Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
       r.clipped = options.clip_level && r.amplitude > *options.clip_level;
       rd.push_back(r);
     }
-    rec.drops.push_back(std::move(rd));
+    out.push_back(std::move(rd));
   }
+  return out;
+}
 
-  // Distractors: uniform times at least 10 ms from every onset, amplitudes up to distractor_db.
-  {
-    Rng rng = Stream(options.seed, kDistractor);
-    std::vector<double> onsets;
-    for (const auto& d : rec.drops) {
-      for (const auto& r : d) onsets.push_back(r.onset_s);
-    }
-    for (int k = 0; k < options.distractors; ++k) {
-      Distractor d;
-      for (int attempt = 0; attempt < 200; ++attempt) {
-        d.time_s = rng.Uniform(0.02 * duration, 0.98 * duration);
-        bool clear = true;
-        for (double o : onsets) clear = clear && std::fabs(o - d.time_s) > 0.010;
-        if (clear) break;
-      }
-      d.amplitude = options.peak_level *
-                    std::pow(10.0, (options.distractor_db - rng.Uniform(0.0, 12.0)) / 20.0);
-      d.freq_hz = rng.Uniform(0.03, 0.3) * rate;
-      rec.distractors.push_back(d);
-    }
+// Distractors: uniform times at least 10 ms from every onset, amplitudes up to distractor_db.
+std::vector<Distractor> PlaceDistractors(const std::vector<std::vector<RenderedImpact>>& drops,
+                                         double duration, const RenderOptions& options) {
+  Rng rng = Stream(options.seed, kDistractor);
+  std::vector<double> onsets;
+  for (const auto& d : drops) {
+    for (const auto& r : d) onsets.push_back(r.onset_s);
   }
+  std::vector<Distractor> out;
+  for (int k = 0; k < options.distractors; ++k) {
+    Distractor d;
+    for (int attempt = 0; attempt < 200; ++attempt) {
+      d.time_s = rng.Uniform(0.02 * duration, 0.98 * duration);
+      bool clear = true;
+      for (double o : onsets) clear = clear && std::fabs(o - d.time_s) > 0.010;
+      if (clear) break;
+    }
+    d.amplitude = options.peak_level *
+                  std::pow(10.0, (options.distractor_db - rng.Uniform(0.0, 12.0)) / 20.0);
+    d.freq_hz = rng.Uniform(0.03, 0.3) * options.sample_rate_hz;
+    out.push_back(d);
+  }
+  return out;
+}
 
+// Mains hum: the fundamental and four harmonics below 0.45 rate, random phases (one draw for
+// every channel).
+void AddHum(double gain, const RenderOptions& options, std::vector<double>* x) {
+  if (!(options.hum_hz > 0)) return;
   Rng hum_rng = Stream(options.seed, kHum);
   double hum_phase[5];
   for (double& ph : hum_phase) ph = hum_rng.Uniform(0.0, 2.0 * M_PI);
   static constexpr double kHumHarmonics[5] = {1.0, 0.5, 0.35, 0.2, 0.12};
+  const double rate = options.sample_rate_hz;
+  const double a = options.peak_level * std::pow(10.0, options.hum_db / 20.0) * gain;
+  for (int h = 0; h < 5; ++h) {
+    const double f = options.hum_hz * (h + 1);
+    if (f >= 0.45 * rate) break;
+    const double w = 2.0 * M_PI * f / rate;
+    for (std::size_t n = 0; n < x->size(); ++n) {
+      (*x)[n] += a * kHumHarmonics[h] * std::sin(w * static_cast<double>(n) + hum_phase[h]);
+    }
+  }
+}
 
-  rec.channels.assign(nch, std::vector<float>(n_samples));
-  for (std::size_t c = 0; c < nch; ++c) {
-    const double gain = options.channels[c].gain;
-    std::vector<double> x(n_samples);
-    for (std::size_t n = 0; n < n_samples; ++n) x[n] = clean[c][n] * scale * gain;
-    if (options.hum_hz > 0) {
-      const double a = options.peak_level * std::pow(10.0, options.hum_db / 20.0) * gain;
-      for (int h = 0; h < 5; ++h) {
-        const double f = options.hum_hz * (h + 1);
-        if (f >= 0.45 * rate) break;
-        const double w = 2.0 * M_PI * f / rate;
-        for (std::size_t n = 0; n < n_samples; ++n) {
-          x[n] += a * kHumHarmonics[h] * std::sin(w * static_cast<double>(n) + hum_phase[h]);
-        }
-      }
-    }
-    for (std::size_t k = 0; k < rec.distractors.size(); ++k) {
-      Distractor d = rec.distractors[k];
-      d.time_s += options.channels[c].delay_s - options.channels[0].delay_s;
-      d.amplitude *= gain;
-      Rng drng = Stream(options.seed, kDistractor, k + 1);
-      RenderDistractor(d, 2e-3 + 4e-3 * static_cast<double>(k % 3) / 2.0, rate, &drng, &x);
-    }
-    if (noise_rms > 0) {
-      Rng nrng = Stream(options.seed, kNoise, c);
-      std::vector<double> noise(n_samples);
-      FillNoise(options.noise_color, &nrng, &noise);
-      const double k = noise_rms / Rms(noise);
-      for (std::size_t n = 0; n < n_samples; ++n) x[n] += k * noise[n];
-    }
-    if (options.clip_level) {
-      const double l = *options.clip_level;
-      for (double& v : x) v = std::clamp(v, -l, l);
-    }
-    for (std::size_t n = 0; n < n_samples; ++n) rec.channels[c][n] = static_cast<float>(x[n]);
+// Channel c of the recording: the scaled clean sound, hum, distractors, noise, clipping.
+std::vector<float> MixChannel(std::size_t c, const std::vector<double>& clean, double scale,
+                              double noise_rms, const std::vector<Distractor>& distractors,
+                              const RenderOptions& options) {
+  const std::size_t n_samples = clean.size();
+  const double gain = options.channels[c].gain;
+  std::vector<double> x(n_samples);
+  for (std::size_t n = 0; n < n_samples; ++n) x[n] = clean[n] * scale * gain;
+  AddHum(gain, options, &x);
+  for (std::size_t k = 0; k < distractors.size(); ++k) {
+    Distractor d = distractors[k];
+    d.time_s += options.channels[c].delay_s - options.channels[0].delay_s;
+    d.amplitude *= gain;
+    Rng drng = Stream(options.seed, kDistractor, k + 1);
+    RenderDistractor(d, 2e-3 + 4e-3 * static_cast<double>(k % 3) / 2.0, options.sample_rate_hz,
+                     &drng, &x);
+  }
+  if (noise_rms > 0) {
+    Rng nrng = Stream(options.seed, kNoise, c);
+    std::vector<double> noise(n_samples);
+    FillNoise(options.noise_color, &nrng, &noise);
+    const double k = noise_rms / Rms(noise);
+    for (std::size_t n = 0; n < n_samples; ++n) x[n] += k * noise[n];
+  }
+  if (options.clip_level) {
+    const double l = *options.clip_level;
+    for (double& v : x) v = std::clamp(v, -l, l);
+  }
+  return std::vector<float>(x.begin(), x.end());
+}
+
+}  // namespace
+
+Recording RenderRecording(const std::vector<std::vector<TruthImpact>>& drops,
+                          const RenderOptions& options) {
+  std::string err;
+  if (!options.IsValid(&err)) throw Error(ErrorCode::kBadParameter, err);
+  const double last_onset = CheckImpacts(drops, options);
+  std::size_t impact_count = 0;
+  for (const auto& d : drops) impact_count += d.size();
+  const double duration = RecordingLength(last_onset, impact_count, options);
+  const auto n_samples = static_cast<std::size_t>(std::ceil(duration * options.sample_rate_hz));
+  if (n_samples == 0) throw Error(ErrorCode::kBadParameter, "render options: empty recording");
+
+  const std::vector<std::vector<Mode>> channel_modes = ChannelModes(options);
+  const std::vector<std::vector<double>> clean =
+      RenderClean(drops, channel_modes, n_samples, options);
+  double unit_peak = 0.0;
+  for (const auto& ch : clean) {
+    for (double v : ch) unit_peak = std::max(unit_peak, std::fabs(v));
+  }
+  if (impact_count > 0 && !(unit_peak > 0.0)) {
+    throw Error(ErrorCode::kBadParameter, "render: the impacts make no sound");
+  }
+  // Without impacts the levels (noise, hum, distractors) stay relative to peak_level.
+  const double scale = impact_count > 0 ? options.peak_level / unit_peak : 0.0;
+
+  Recording rec;
+  rec.sample_rate_hz = options.sample_rate_hz;
+  rec.clean_peak = options.peak_level;
+  rec.noise_rms =
+      options.snr_db ? options.peak_level * std::pow(10.0, -*options.snr_db / 20.0) : 0.0;
+  rec.drops = ImpactTruth(drops, channel_modes, scale, rec.noise_rms, options);
+  rec.distractors = PlaceDistractors(rec.drops, duration, options);
+  for (std::size_t c = 0; c < clean.size(); ++c) {
+    rec.channels.push_back(MixChannel(c, clean[c], scale, rec.noise_rms, rec.distractors, options));
   }
   return rec;
 }

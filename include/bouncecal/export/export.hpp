@@ -12,7 +12,7 @@
 //            turns trace.csv into impacts.csv (index,time_s,v_in_m_s,v_out_m_s) with
 //            impacts.awk (impacts located from the exact gravity flights either side of each
 //            contact); mapping.json is the ExportResult as JSON.
-//   packing: in.packing (LAMMPS, LIGGGHTS): the seed paper's validation scene (PHYSICS.md §1)
+//   packing: in.packing (LAMMPS, LIGGGHTS): the seed paper's validation scene (docs/physics.md §1)
 //            with the fitted damping; run.sh runs `mpirun -np ${NP:-1}`; writes packing.csv
 //            (z_m of every sphere) and the density between 0.005 and 0.045 m.
 // Refuses (Error) an unknown or newer schema, a fit whose outcome is not "converged" (unless
@@ -48,7 +48,7 @@ struct ExportOptions {
   // The version the deck is written for; "" = detect the simulator on PATH (the verified
   // version is assumed, with a note, when it is absent).
   std::string simulator_version;
-  // packing scene (PHYSICS.md §1): particles, simulated time.
+  // packing scene (docs/physics.md §1): particles, simulated time.
   int packing_particles = 2000;
   double packing_time_s = 3.0;
   double packing_restitution = 0.0;  // pairwise e; 0 = the fit's e at the middle measured speed

@@ -1,6 +1,6 @@
 // bouncecal/fit/calibrate.hpp — fit a contact law's damping to measured impacts (Ceres).
 //
-// The error model (PHYSICS.md §6; scatter_model.hpp): a real ball's restitution scatters from
+// The error model (docs/physics.md §6; scatter_model.hpp): a real ball's restitution scatters from
 // bounce to bounce, e_k = e(u_k; theta) + eps_k, eps_k ~ N(0, sigma_s^2), on top of the timing
 // noise of the onsets. sigma_s (reported as scatter_e with its sigma) is estimated with the
 // law's parameters theta by restricted maximum likelihood, so chi2/dof of the full model is ~1
@@ -104,7 +104,7 @@ struct CalibrationOptions {
   // Goodness of fit: the model is rejected (poor_fit) when a test's p-value is below this ...
   double poor_fit_p_value = 1e-3;
   // ... or when sigma_s exceeds this by more than two of its sigmas: real balls scatter by
-  // 0.005-0.03 (PHYSICS.md §6, misfit of the law included); beyond 0.05 the law does not
+  // 0.005-0.03 (docs/physics.md §6, misfit of the law included); beyond 0.05 the law does not
   // describe the bounces, or they are not one ball's bounces.
   double plausible_scatter_e = 0.05;
   // Trajectory start values of the nuisances per recording (first impact speed, time origin);

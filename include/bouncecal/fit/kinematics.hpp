@@ -1,6 +1,6 @@
 // bouncecal/fit/kinematics.hpp — impact times -> per-bounce speeds, restitution and energy loss.
 //
-// PHYSICS.md §1-2 (seed 002 eqs. 7-12): with the flight model of the scene (no/linear/quadratic
+// docs/physics.md §1-2 (seed 002 eqs. 7-12): with the flight model of the scene (no/linear/quadratic
 // drag, buoyancy) each measured interval T_k = t_{k+1} - t_k (less the contact duration of
 // impact k when the scene turns that effect on) gives the rebound speed v_out,k by inverting the
 // exact flight time, and the arrival speed at k+1 from the same flight. Then
@@ -58,7 +58,7 @@ struct Bounce {
 
 struct AnalysisOptions {
   // Contact duration model when scene.effects.contact_duration is on: a fixed value, or
-  // (when <= 0) the Hertz estimate from the scene's materials (PHYSICS.md §2).
+  // (when <= 0) the Hertz estimate from the scene's materials (docs/physics.md §2).
   double contact_time_s = 0.0;
   // When set, the contact duration at an impact speed (m/s -> s), e.g. the contact law's own
   // (calibrate uses the fitted law's); it replaces contact_time_s and the Hertz estimate.
@@ -113,7 +113,7 @@ struct Analysis {
   std::vector<Warning> warnings;  // coded: intervals that could not be used, e > 1, ...
 };
 
-// Hertz contact duration of the scene's ball on its surface at impact speed v (PHYSICS.md §2;
+// Hertz contact duration of the scene's ball on its surface at impact speed v (docs/physics.md §2;
 // Johnson, Contact Mechanics, eq. 11.24): tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5), m* = m,
 // R* = R (ball on a massive flat plate), 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2.
 // Throws Error(kBadScene) when the materials' elastic constants are unknown.

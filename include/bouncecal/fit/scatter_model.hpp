@@ -1,4 +1,4 @@
-// bouncecal/fit/scatter_model.hpp — the per-bounce scatter error model (PHYSICS.md §6).
+// bouncecal/fit/scatter_model.hpp — the per-bounce scatter error model (docs/physics.md §6).
 //
 // Real balls do not bounce identically: bounce k's restitution is e_k = e(u_k; theta) + eps_k with
 // eps_k ~ N(0, sigma_s^2) independent (a random effect), on top of the timing noise of the

@@ -13,7 +13,7 @@
 //   double e = law->Restitution(p, body, 1.5).value();                 // closed form, if any
 //   auto dynamics = law->Dynamics(p, body);   // force, state rate, energies (contact_dynamics.hpp)
 //
-// Conventions (PHYSICS.md §3): m* is the effective mass, R* the effective radius; a ball on a
+// Conventions (docs/physics.md §3): m* is the effective mass, R* the effective radius; a ball on a
 // rigid wall has m* = m, R* = R. Closed forms neglect gravity during the contact (it is
 // included by the simulator). Parameters are passed as a flat vector in the order of
 // Parameters(), so the fitter can hand Ceres a raw pointer; names and units live in the specs.

@@ -1,7 +1,7 @@
 // bouncecal/physics/flight.hpp — exact vertical flight of a ball between impacts.
 //
 // Closed forms for vertical motion under gravity (with buoyancy when the scene asks) and no,
-// linear (Stokes) or quadratic air drag: PHYSICS.md §2. Used by analyze (to turn measured
+// linear (Stokes) or quadratic air drag: docs/physics.md §2. Used by analyze (to turn measured
 // intervals into speeds), by the simulator (flights are never integrated numerically) and by
 // the renderer. All functions are pure, thread-safe and valid for v0 from 0 to far above the
 // terminal speed.

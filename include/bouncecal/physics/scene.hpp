@@ -62,9 +62,9 @@ struct Surface {
 
 struct Environment {
   double g_m_s2 = 9.8;                  // seed 002 uses 9.8
-  double air_density_kg_m3 = 1.2;       // PHYSICS.md §2
+  double air_density_kg_m3 = 1.2;       // docs/physics.md §2
   double air_viscosity_pa_s = 1.81e-5;  // dry air, 20 °C (linear/Stokes drag)
-  double drag_coefficient = 0.47;       // smooth sphere, PHYSICS.md §2
+  double drag_coefficient = 0.47;       // smooth sphere, docs/physics.md §2
   friend bool operator==(const Environment&, const Environment&) = default;
 };
 
@@ -112,7 +112,7 @@ struct Scene {
   SimulationLimits limits;
   std::string source;  // file the scene came from, or "" for defaults/flags
 
-  // Effective gravity: g (1 - rho_air/rho_ball) with buoyancy, else g. PHYSICS.md §2.
+  // Effective gravity: g (1 - rho_air/rho_ball) with buoyancy, else g. docs/physics.md §2.
   double EffectiveGravity() const;
   // Checks every value (positive sizes, finite numbers, one of height/speed, ...).
   // The message names the key and the value, prefixed by source when set.

@@ -75,7 +75,7 @@ struct TruthOptions {
   double rest_speed_m_s = 0.0;
   // Contact duration of every impact; unset: Hertz estimate from the scene's materials.
   std::optional<double> contact_s;
-  // Per-bounce restitution scatter of a real ball (PHYSICS.md §6): each bounce's e is
+  // Per-bounce restitution scatter of a real ball (docs/physics.md §6): each bounce's e is
   // e(v_in) + scatter_e * N(0, 1), clamped to [0, 1], the normal deviates drawn from
   // scatter_seed (same seed -> same bounces). 0: every bounce follows e(v) exactly.
   double scatter_e = 0.0;
@@ -84,7 +84,7 @@ struct TruthOptions {
 };
 
 // Hertz contact duration of the ball on a rigid-backed flat of the surface material at impact
-// speed v: tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5) (PHYSICS.md §2; Johnson, Contact Mechanics,
+// speed v: tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5) (docs/physics.md §2; Johnson, Contact Mechanics,
 // eq. 11.24), m* = m, R* = R, 1/E* = (1-nu_b^2)/E_b + (1-nu_s^2)/E_s.
 // Throws Error(kBadScene) when a material has no Young's modulus.
 double HertzContactDuration(const Scene& scene, double v_m_s);

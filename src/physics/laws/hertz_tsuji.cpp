@@ -1,5 +1,5 @@
 // Hertz contact with Tsuji's viscous damping (Tsuji, Tanaka & Ishida, Powder Technol. 71 (1992)
-// 239, eq. 12; the "Hertz-Mindlin" normal force of seeds 000 and 003; PHYSICS.md §3):
+// 239, eq. 12; the "Hertz-Mindlin" normal force of seeds 000 and 003; docs/physics.md §3):
 //   F = k delta^(3/2) + eta delta^(1/4) delta',  eta = alpha(e) sqrt(m* k).
 // Parameterisation: the user (and the fitter) gives the TARGET RESTITUTION e, not alpha. The
 // restitution of this law depends on alpha only (scaling delta = L x, t = (L/v) s with

@@ -1,5 +1,5 @@
 // Viscoelastic Hertz (Brilliantov, Spahn, Hertzsch & Poschel, PRE 53 (1996) 5382; Kuwabara &
-// Kono, Jpn. J. Appl. Phys. 26 (1987) 1230; PHYSICS.md §3):
+// Kono, Jpn. J. Appl. Phys. 26 (1987) 1230; docs/physics.md §3):
 //   F = k (delta^(3/2) + (3/2) A delta^(1/2) delta'),  A = dissipative time constant (s).
 // With delta = L x, t = (L/v) s, L = (m* v^2/k)^(2/5) the equation becomes
 //   x'' = -x^(3/2) - b x^(1/2) x',  b = beta v^(1/5),  beta = (3/2) A (k/m*)^(2/5),

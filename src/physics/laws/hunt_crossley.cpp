@@ -1,4 +1,4 @@
-// Hunt-Crossley family (Hunt & Crossley, J. Appl. Mech. 42 (1975) 440; PHYSICS.md §3):
+// Hunt-Crossley family (Hunt & Crossley, J. Appl. Mech. 42 (1975) 440; docs/physics.md §3):
 //   F = k delta^n (1 + alpha delta'),  n = 1.5 for Hertz contact.
 // Registry rows (one class):
 //   hunt-crossley         parameters k, n, alpha (s/m) given directly;
@@ -8,7 +8,7 @@
 //   hunt-crossley-flores  k, n, e, v0: alpha = 8 (1 - e) / (5 e v0)     (Flores et al., Mech.
 //                                                                       Mach. Theory 46 (2011))
 // The variants set alpha from a target e at the impact speed v0; none reproduces e exactly
-// (PHYSICS.md §3: ~0.847 and ~0.789 for a target of 0.8), which tests/laws_test.cpp shows.
+// (docs/physics.md §3: ~0.847 and ~0.789 for a target of 0.8), which tests/laws_test.cpp shows.
 // The force would turn attractive for alpha delta' < -1, but during unloading the force
 // vanishes as delta' -> -1/alpha, so the ball approaches that speed only asymptotically and
 // never crosses it: v_out < 1/alpha and F >= 0 throughout, the F = 0 and delta = 0 end rules

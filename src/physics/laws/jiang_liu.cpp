@@ -1,8 +1,9 @@
 // The Jiang-Liu thermodynamic contact law, normal direction (Jiang & Liu, Acta Phys. Sin. 67
-// (2018) 044502, seed 000; PHYSICS.md §4).
+// (2018) 044502, seed 000; docs/physics.md §4).
 //
 // With lambda_n = 0 (eq. 37) the elastic deformation follows the overlap, u_n = -delta, so the
-// spring force is plain Hertz, pi_n = k delta^(3/2) (eq. 8 with u_t = 0, c = 0). With the gear
+// spring force is plain Hertz, pi_n = k delta^(3/2) (the energy of eq. 19 with u_t = 0, c = 0;
+// force eq. 20). With the gear
 // ratio alpha_n = 1 - Theta(delta/d) (eq. 38) and eta^heat = 0 the normal force (eq. 28) is
 //   F = k delta^(3/2) + eta^relax delta',  eta^relax = a w_r^(1/4) Theta(delta/d)  (eq. 39)
 // (the elastic part is kept at full weight for delta > 0: Theta only gates the viscosity; with
@@ -13,7 +14,7 @@
 // w_r equation is not Lipschitz at w_r = 0 (w_r = 0 is a spurious elastic solution). The state
 // integrated here is s = w_r^(3/4):
 //   ds/dt = (3/4) (a Theta delta'^2 - s / tau),  w_r = s^(4/3),  eta^relax = a s^(1/3) Theta,
-// which is Lipschitz and leaves s = 0 on the dissipative branch without a seed (PHYSICS.md §4).
+// which is Lipschitz and leaves s = 0 on the dissipative branch without a seed (docs/physics.md §4).
 // tau is tiny (~ t_c/250 for the 1 cm steel ball): the relaxation is stiff. How the integrator
 // copes (contact_integrator.hpp), measured with bench_simulate:
 //  - the constants of eqs. 37 and 39 (five pow calls) are prepared once per simulation
@@ -34,8 +35,9 @@
 // The contact ends at delta = 0 (the viscous force makes F slightly attractive near the end;
 // clipping it would break eq. 17). Internal energy = w_r. Parameters are the two prefactors
 // of eqs. 37 and 39 (the paper's 0.06 and 0.1 are defaults; those are what a calibration fits).
-// Note: eqs. 37 and 39 are not dimensionally homogeneous as printed (tau comes out in
-// s*m^(1/2)); they are used as printed, in SI units, with m = grain mass and d = grain diameter.
+// Eqs. 37 and 39 are used as printed, in SI units, with m = grain mass and d = grain diameter;
+// with k in kg/(s^2 m^(1/2)) (= N/m^1.5, the paper below eq. 19) tau comes out in s and
+// eta^relax in kg/s (docs/physics.md §4).
 #include "physics/laws/jiang_liu.hpp"
 
 #include <cmath>
@@ -84,7 +86,7 @@ class JiangLiu final : public LawImpl<JiangLiu> {
   static std::unique_ptr<LawBase> Create(const LawSpec&, const Scene& scene) {
     auto law = std::make_unique<JiangLiu>();
     law->specs_ = {
-        HertzStiffnessSpec(scene, "N/m^1.5", "Hertz spring constant (eq. 8)"),
+        HertzStiffnessSpec(scene, "N/m^1.5", "Hertz spring constant (eqs. 19-20)"),
         Spec("eta", "1", "prefactor of eta^relax, eq. 39 (paper: 0.1)", 0.0, 1e6, 0.1, true),
         Spec("tau", "1", "prefactor of tau_relax, eq. 37 (paper: 0.06)", 1e-9, 1e6, 0.06, false),
     };
@@ -135,7 +137,7 @@ class JiangLiu final : public LawImpl<JiangLiu> {
     return std::pow(energy_j, 0.75);
   }
   double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
-    return delta_m > 0.0 ? 0.4 * c.k * delta_m * delta_m * std::sqrt(delta_m) : 0.0;  // eq. 8
+    return delta_m > 0.0 ? 0.4 * c.k * delta_m * delta_m * std::sqrt(delta_m) : 0.0;  // eq. 19
   }
   double InternalEnergy(const Constants<double>&, const double* state) const {
     return std::pow(std::max(state[0], 0.0), 4.0 / 3.0);  // w_r = s^(4/3)

@@ -1,13 +1,13 @@
 // Linear spring-dashpot (Cundall & Strack 1979): F = k delta + c delta_dot.
 //
 // Closed form (any damping): m* delta'' + c delta' + k delta = 0, delta(0) = 0, delta'(0) = v.
-// With omega = sqrt(k/m*), zeta = c / (2 sqrt(m* k)) (PHYSICS.md §3):
+// With omega = sqrt(k/m*), zeta = c / (2 sqrt(m* k)) (docs/physics.md §3):
 //  - underdamped (zeta < 1): delta = (v/wd) exp(-sigma t) sin(wd t), sigma = zeta omega,
 //    wd = omega sqrt(1 - zeta^2);
 //      end at delta = 0:  t_c = pi/wd, e = exp(-pi zeta / sqrt(1 - zeta^2))
 //      end at F = 0 (F = -m* delta'' = 0): wd t_c = pi - atan2(c wd, k - c sigma),
 //        e = -delta'(t_c)/v  (the ball leaves with delta > 0; e = 0.8 under the delta = 0 rule
-//        gives ~0.808 under this rule, PHYSICS.md §3)
+//        gives ~0.808 under this rule, docs/physics.md §3)
 //  - critically/overdamped (zeta >= 1), roots r1,2 = -sigma +- omega sqrt(zeta^2 - 1):
 //      end at delta = 0: never (the ball sticks: e = 0, t_c = inf)
 //      end at F = 0: t_c = 2 ln(r2/r1)/(r1 - r2), e = exp(r1 t_c) r1/r2

@@ -1,6 +1,6 @@
 // Seed 002's "Walton-Braun" law (Zhong et al., Acta Phys. Sin. 2009, eqs. 3-4):
 //   F = (1 + gamma) k delta while loading (delta' > 0), F = (1 - gamma) k delta while unloading.
-// Closed forms (PHYSICS.md §1, §3): two half-periods of linear springs,
+// Closed forms (docs/physics.md §1, §3): two half-periods of linear springs,
 //   omega_load = sqrt((1 + gamma) k / m*), omega_unload = sqrt((1 - gamma) k / m*),
 //   delta_max = v / omega_load, v_out = omega_unload delta_max, so
 //   e^2 = (1 - gamma)/(1 + gamma), eta = 1 - e^2 = 2 gamma/(1 + gamma)     (seed 002 eq. 23)

@@ -1,4 +1,4 @@
-// Hysteretic Walton-Braun law (Walton & Braun, J. Rheol. 30 (1986) 949; PHYSICS.md §3):
+// Hysteretic Walton-Braun law (Walton & Braun, J. Rheol. 30 (1986) 949; docs/physics.md §3):
 //   loading (delta at its running maximum delta_max): F = k1 delta
 //   unloading / reloading below delta_max:            F = k2 (delta - delta0),
 //   delta0 = delta_max (1 - k1/k2)  (the unloading line meets the loading line at delta_max).

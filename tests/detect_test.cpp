@@ -204,7 +204,7 @@ TEST_F(DetectCli, JsonCsvAndTable) {
 
   const CliRun c = Cli("detect " + wav + " --csv");
   ASSERT_EQ(c.code, 0);
-  EXPECT_EQ(c.out.rfind("sequence,index,time_s,sigma_s", 0), 0u);
+  EXPECT_EQ(c.out.rfind("sequence,index,time_s,time_sigma_s", 0), 0u);
   std::size_t rows = 0;
   for (char ch : c.out) rows += ch == '\n';
   std::size_t total = 0;

@@ -3,9 +3,10 @@
 //   bouncecal calibrate X.wav --scene X.toml --law hertz-viscoelastic --json
 // The numbers must be believable: the outcome is converged or poor_fit and the exit code says
 // which; chi2/dof of the full model is ~1 (the scatter absorbs what timing cannot explain);
-// the scatter lies in what real balls show (docs/physics.md §6); the damping has a finite sigma that
-// includes the scatter. Known diagnoses fire: the superball's mis-tracked impact 42 is an
-// irregular bounce; a ping-pong recording analysed as if dropped from 0.2 m has an inconsistent
+// the scatter lies in what real balls show (docs/physics.md §6); the damping has a finite sigma
+// that includes the scatter. Known diagnoses fire: the superball's low bounce at the end of its
+// regular sequence is an irregular bounce (and no e > 1 is reported: none is annotated); a
+// ping-pong recording analysed as if dropped from 0.2 m has an inconsistent
 // drop. Skips when the folder is absent (a user's machine), fails under CI=true.
 #include <gtest/gtest.h>
 
@@ -84,8 +85,13 @@ TEST(RealCalibration, KnownDiagnosesFire) {
       RunCommand(BOUNCECAL_BINARY, "calibrate " + Recording(ball + ".wav") + " --scene " +
                                        Recording(ball + ".toml") + " --json");
   const auto jb = nlohmann::json::parse(sb.out);
+  // The annotated e_31 = 0.861 (../shared/recordings/pfe_bouncyball_h0.9m_stereo48k.impacts.csv,
+  // where the regular sequence ends at ~10.6 s) against 0.92-0.95 around it: measured e = 0.857,
+  // 4.4 sigma below the smooth e(v). The e > 1 this test once required came from an impact the
+  // old detection mis-tracked; every annotated e is below 0.96 and the detection now matches
+  // every annotated impact, so e_above_one must not fire.
   EXPECT_TRUE(HasCode(jb, "irregular_bounce")) << jb.at("warnings");
-  EXPECT_TRUE(HasCode(jb, "e_above_one")) << jb.at("warnings");
+  EXPECT_FALSE(HasCode(jb, "e_above_one")) << jb.at("warnings");
   // The ping-pong scene gives no drop; stating 0.2 m contradicts the first interval.
   const auto pp =
       RunCommand(BOUNCECAL_BINARY, "analyze " + Recording("eeps_pingpong.wav") + " --scene " +

@@ -273,12 +273,13 @@ void DumpTiming(const std::string& path, const Corpus& c, const RunOut& r) {
         if (!best || std::fabs(t.t - im.time_s) < std::fabs(best->t - im.time_s)) best = &t;
       const bool matched = best && std::fabs(best->t - im.time_s) <= 1e-3;
       const TimingDetail& d = tr.detail[k];
-      std::fprintf(f,
-                   "%s,%d,%zu,%zu,%.9e,%.4e,%d,%.4f,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.2f,%d,%.0f\n",
-                   c.preset.c_str(), c.seed, q, k, matched ? im.time_s - best->t : NAN, im.sigma_s,
-                   d.by_template ? 1 : 0, d.ncc, d.sigma_noise, d.sigma_shape, d.sigma_ambiguity,
-                   d.level_ratio, d.noise_rms, im.amplitude, im.snr_db,
-                   matched ? (best->eligible ? 1 : 0) : -1, c.audio.info.sample_rate_hz);
+      std::fprintf(
+          f,
+          "%s,%d,%zu,%zu,%.9e,%.4e,%d,%.4f,%.4e,%.4e,%.4e,%.4e,%.4e,%.4e,%.2f,%d,%.0f,%.3f,%.4e\n",
+          c.preset.c_str(), c.seed, q, k, matched ? im.time_s - best->t : NAN, im.sigma_s,
+          d.by_template ? 1 : 0, d.ncc, d.sigma_noise, d.sigma_shape, d.sigma_slip, d.level_ratio,
+          d.noise_rms, im.amplitude, im.snr_db, matched ? (best->eligible ? 1 : 0) : -1,
+          c.audio.info.sample_rate_hz, d.aic_residual, d.sigma_ambiguity);
     }
   }
   std::fclose(f);
@@ -630,7 +631,8 @@ int main(int argc, char** argv) {
     }
     std::fputs(
         "preset,seed,sequence,k,err_s,sigma_s,by_template,ncc,sigma_noise,sigma_shape,"
-        "sigma_ambiguity,level_ratio,noise_rms,amplitude,snr_db,eligible,rate_hz\n",
+        "sigma_slip,level_ratio,noise_rms,amplitude,snr_db,eligible,rate_hz,aic_residual,sigma_"
+        "ambiguity\n",
         f);
     std::fclose(f);
   }

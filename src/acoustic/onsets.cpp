@@ -187,6 +187,17 @@ AicPick AicOn(const std::vector<double>& y, double units) {
   pick.index = (static_cast<double>(best) + 0.5 + delta) / units;
   // AIC ~ -2 log L (x units): the 1-sigma half width is where it rises by 1.
   pick.sigma = curv > 0.0 ? std::sqrt(2.0 * units / curv) / units : 0.5;
+  // Posterior of the change point (flat prior): w_k ~ exp(-(AIC_k - AIC_min) / (2 units)).
+  double sw = 0.0, sk = 0.0, skk = 0.0;
+  for (std::size_t k = kmin; k <= kmax; ++k) {
+    const double w = std::exp(-(aic[k] - aic[best]) / (2.0 * units));
+    const double kk = static_cast<double>(k);
+    sw += w;
+    sk += w * kk;
+    skk += w * kk * kk;
+  }
+  const double mean = sk / sw;
+  pick.spread = std::sqrt(std::max(skk / sw - mean * mean, 0.0)) / units;
   pick.valid = true;
   return pick;
 }

@@ -141,6 +141,13 @@ std::string TruthPath(const std::string& audio_path) {
   return p.string();
 }
 
+// The contact law the impacts were simulated with (null: from restitution values).
+nlohmann::json SimulatedLawJson(const SynthSpec& spec) {
+  if (spec.truth_source != TruthSource::kLaw) return nullptr;
+  const auto law = CreateLaw(spec.scene.law, spec.scene);
+  return LawJson(*law, law->ParameterValues(), spec.scene.law.expression);
+}
+
 void Run(const SynthFlags& f) {
   if (f.list_presets) {
     for (const std::string& n : SynthPresetNames()) {
@@ -286,12 +293,7 @@ void Run(const SynthFlags& f) {
                         {"drops", result.truth.size()},
                         {"impacts", impacts},
                         {"truth_source", TruthSourceName(spec.truth_source)}};
-    // The contact law the impacts were simulated with (null: from restitution values).
-    j["law"] = nullptr;
-    if (spec.truth_source == TruthSource::kLaw) {
-      const auto law = CreateLaw(spec.scene.law, spec.scene);
-      j["law"] = LawJson(*law, law->ParameterValues(), spec.scene.law.expression);
-    }
+    j["law"] = SimulatedLawJson(spec);
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf(

@@ -439,6 +439,13 @@ bool ExportOptions::IsValid(std::string* error) const {
   return true;
 }
 
+// The fit's law object (values and sigmas); a version-1 file's law rebuilt from the registry.
+static nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law,
+                                      const Scene& scene) {
+  if (pf.schema == kParamFileSchema && pf.doc.contains("law")) return pf.doc["law"];
+  return LawJson(law, law.ParameterValues(), scene.law.expression);
+}
+
 ExportResult ExportDeck(const std::string& params_path, const std::string& out_dir,
                         const ExportOptions& options) {
   std::string why;
@@ -457,10 +464,7 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.target = ExportTargetName(options.target);
   r.scene = ExportSceneName(options.scene);
   r.law = scene.law.name;
-  // The fit's law object (values and sigmas); a version-1 file's law rebuilt from the registry.
-  r.law_json = pf.schema == kParamFileSchema && pf.doc.contains("law")
-                   ? pf.doc["law"]
-                   : LawJson(*law, law->ParameterValues(), scene.law.expression);
+  r.law_json = ExportedLawJson(pf, *law, scene);
   r.simulator_version = options.simulator_version;
   if (r.simulator_version.empty()) r.simulator_version = DetectSimulatorVersion(options.target);
   const std::string verified = VerifiedSimulatorVersion(options.target);

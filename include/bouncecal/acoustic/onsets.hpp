@@ -101,6 +101,10 @@ void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz);
 struct AicPick {
   double index = 0.0;  // sub-sample index of the first sample of the new regime
   double sigma = 0.0;  // 1-sigma uncertainty, samples
+  // Standard deviation (samples) of the change point's posterior over the window: AIC is
+  // -2 log L + const, so with a flat prior the weights are exp(-(AIC_k - AIC_min) / 2). Unlike
+  // `sigma` (the curvature at the minimum) it sees rival minima elsewhere in the window.
+  double spread = 0.0;
   bool valid = false;  // false if the window is too short or flat
 };
 // AIC change-point picker on x[begin, end): AIC(k) = k log var(x[begin..k]) +

@@ -17,6 +17,9 @@ pkgs=(
   chromium           # the report's browser test (headless)
   libpng-dev         # the browser test reads its screenshot
   bsdutils           # `script`: the progress test runs the CLI on a pseudo-terminal
+  # Python bindings (python/): pybind11 against Debian's python3; NumPy arrays; pytest runs
+  # python/tests through ctest (python_test). No pip: every Python package is Debian's.
+  pybind11-dev python3-dev python3-numpy python3-pytest
 )
 # Node.js and npm install the report's charting libraries at build time. A machine that already
 # has them (Debian's packages or another node build that ships npm) keeps its own.

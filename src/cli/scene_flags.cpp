@@ -81,7 +81,11 @@ void AddSceneFlags(CLI::App* sub, SceneFlags* flags, bool with_law) {
 
 Scene ResolveScene(const SceneFlags& flags) {
   Scene scene;
-  if (!flags.scene_file.empty()) scene = LoadSceneFile(flags.scene_file);
+  if (!flags.scene_text.empty()) {
+    scene = ParseScene(flags.scene_text, flags.scene_file);
+  } else if (!flags.scene_file.empty()) {
+    scene = LoadSceneFile(flags.scene_file);
+  }
 
   if (flags.mass_kg && flags.density_kg_m3) {
     throw Error(ErrorCode::kBadParameter, "--mass " + Num(*flags.mass_kg) + " and --density " +
@@ -205,7 +209,10 @@ GivenScene ResolveGivenScene(const SceneFlags& flags) {
   GivenScene gs;
   gs.scene = ResolveScene(flags);
   if (!flags.scene_file.empty()) {
-    for (const std::string& k : SceneFileKeys(flags.scene_file)) gs.given.insert(k);
+    const std::vector<std::string> keys = flags.scene_text.empty()
+                                              ? SceneFileKeys(flags.scene_file)
+                                              : SceneTextKeys(flags.scene_text, flags.scene_file);
+    for (const std::string& k : keys) gs.given.insert(k);
   }
   auto mark = [&](bool on, const char* key) {
     if (on) gs.given.insert(key);

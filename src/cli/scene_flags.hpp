@@ -16,6 +16,9 @@ namespace bouncecal::cli {
 
 struct SceneFlags {
   std::string scene_file;
+  // TOML text read instead of the file when non-empty (the Python bindings' scene dict);
+  // scene_file then only names it in messages.
+  std::string scene_text;
   std::optional<double> height_m;
   std::optional<double> height_sigma_m;
   std::optional<double> impact_speed_m_s;

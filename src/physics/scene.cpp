@@ -771,10 +771,13 @@ void CollectKeys(const toml::table& table, const std::string& prefix,
 Scene LoadSceneFile(const std::string& path) { return ParseScene(ReadSceneText(path), path); }
 
 std::vector<std::string> SceneFileKeys(const std::string& path) {
-  const std::string text = ReadSceneText(path);
-  ParseScene(text, path);  // the same checks (and errors) as LoadSceneFile
+  return SceneTextKeys(ReadSceneText(path), path);
+}
+
+std::vector<std::string> SceneTextKeys(const std::string& toml_text, const std::string& source) {
+  ParseScene(toml_text, source);  // the same checks (and errors) as LoadSceneFile
   std::vector<std::string> keys;
-  CollectKeys(toml::parse(text, path), "", &keys);
+  CollectKeys(toml::parse(toml_text, source), "", &keys);
   return keys;
 }
 

@@ -154,5 +154,7 @@ std::string SceneToToml(const Scene& scene);
 // ...), so that callers can tell given values from defaults (a scene file without [drop] means
 // the drop is unknown to analyze/calibrate). Same errors as LoadSceneFile.
 std::vector<std::string> SceneFileKeys(const std::string& path);
+// The same for TOML text (source is used in messages).
+std::vector<std::string> SceneTextKeys(const std::string& toml_text, const std::string& source);
 
 }  // namespace bouncecal

@@ -1,0 +1,65 @@
+// Shared pieces of the Python bindings (module.cpp).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <pybind11/pybind11.h>
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/core/error.hpp"
+#include "detect_flags.hpp"
+#include "scene_flags.hpp"
+
+namespace bouncecal::python {
+
+namespace py = pybind11;
+
+// JSON -> Python: objects -> dict (key order kept), arrays -> list, numbers -> int/float,
+// null -> None.
+py::object ToPython(const nlohmann::json& j);
+
+// An Error after which the CLI still prints a result (several inputs with failures, a fit whose
+// outcome is not "converged"): the exception's .result holds that result.
+class ErrorWithResult : public Error {
+ public:
+  ErrorWithResult(ErrorCode code, const std::string& message, nlohmann::json result)
+      : Error(code, message), result_(std::move(result)) {}
+  const nlohmann::json& result() const { return result_; }
+
+ private:
+  nlohmann::json result_;
+};
+
+// bouncecal::Error -> the bouncecal.Error subclass of its code (python/bouncecal/_errors.py).
+void RegisterErrorTranslator();
+
+// The options the caller set, by name (the CLI's flag in snake_case). Each Take* reads and
+// removes one; Finish() refuses names nobody read (a misspelled option is an error, not ignored).
+class Options {
+ public:
+  explicit Options(const py::dict& d);
+  std::optional<double> TakeDouble(const char* name);
+  std::optional<int> TakeInt(const char* name);
+  std::optional<std::string> TakeString(const char* name);
+  std::vector<std::string> TakeStrings(const char* name);
+  bool TakeFlag(const char* name);
+  void Finish(const char* function);
+
+ private:
+  py::dict d_;
+};
+
+// --scene FILE (or the TOML text of a scene dict) and the scene flags; with_law adds law, set,
+// expression.
+cli::SceneFlags TakeSceneFlags(Options& o, bool with_law);
+// channel, start, end, sequence, min_snr_db, impacts.
+cli::DetectFlags TakeDetectFlags(Options& o);
+
+// laws, simulate, export.
+void BindTools(py::module_& m);
+// detect, analyze, calibrate, read_audio.
+void BindRecordings(py::module_& m);
+
+}  // namespace bouncecal::python

@@ -33,6 +33,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/kinematics.hpp"
 #include "bouncecal/fit/scene_checks.hpp"
 #include "commands.hpp"
@@ -214,9 +215,9 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
       o << b.index << "," << CsvNum(b.time_s) << "," << CsvNum(b.time_sigma_s) << ","
         << CsvNum(b.interval_s) << "," << CsvNum(b.v_in_m_s) << "," << CsvNum(b.v_in_sigma_m_s)
         << "," << CsvNum(b.v_out_m_s) << "," << CsvNum(b.v_out_sigma_m_s) << "," << CsvNum(b.e)
-        << "," << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta)
-        << "," << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << ","
-        << (b.irregular ? 1 : 0) << "\n";
+        << "," << CsvNum(b.e_total_sigma) << "," << CsvNum(b.e_sigma) << "," << CsvNum(b.eta) << ","
+        << CsvNum(b.eta_sigma) << "," << CsvNum(b.contact_s) << "," << (b.irregular ? 1 : 0)
+        << "\n";
     }
     std::cout << o.str();
     return;
@@ -327,7 +328,7 @@ void Run(const AnalyzeFlags& flags) {
     }
   }
   // One recording and one sequence: the object itself (the shape of one analysis).
-  if (flags.json) std::cout << (all.size() == 1 && !several ? all[0] : all).dump(2) << "\n";
+  if (flags.json) std::cout << DumpJson(all.size() == 1 && !several ? all[0] : all, 2) << "\n";
   if (any_failed)
     throw Error(ErrorCode::kSomeFailed, "some recordings failed (see the messages above)");
 }

@@ -23,6 +23,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/calibrate.hpp"
 #include "bouncecal/fit/scene_checks.hpp"
 #include "bouncecal/io/param_file.hpp"
@@ -89,6 +90,21 @@ std::vector<CalibrationInput> Detect(const std::pair<std::string, std::string>& 
   return out;
 }
 
+// The exception in flight as an Error naming `input`: bouncecal errors as they are, anything
+// else as kInternal. Worker threads call it from catch (...) so nothing escapes a thread
+// (std::terminate would end the whole batch without its per-file lines).
+Error CurrentError(const std::string& input) {
+  try {
+    throw;
+  } catch (const Error& e) {
+    return e;
+  } catch (const std::exception& e) {
+    return Error(ErrorCode::kInternal, input + ": " + e.what());
+  } catch (...) {
+    return Error(ErrorCode::kInternal, input + ": unknown exception");
+  }
+}
+
 // Detects every input on up to `jobs` threads; throws the first input's error in input order.
 std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string, std::string>>& in,
                                         const DetectFlags& flags, int jobs) {
@@ -99,10 +115,8 @@ std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string,
     for (size_t i = next++; i < in.size(); i = next++) {
       try {
         per[i] = Detect(in[i], flags);
-      } catch (const Error& e) {
-        errors[i] = e;
-      } catch (const std::exception& e) {
-        errors[i] = Error(ErrorCode::kInternal, in[i].first + ": " + e.what());
+      } catch (...) {
+        errors[i] = CurrentError(in[i].first);
       }
     }
   };
@@ -193,14 +207,22 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     summary += CsvHeader(specs) + "\n";
     if (a.output.empty()) std::cout << CsvHeader(specs) << "\n" << std::flush;
   }
-  auto line_for = [&](size_t i) {
-    const Calibration* c = fits[i] ? &*fits[i] : nullptr;
-    const Error* e = errors[i] ? &*errors[i] : nullptr;
+  auto format_line = [&](size_t i, const Calibration* c, const Error* e) {
     if (a.csv) return CsvRow(names[i], specs, c, e);
-    if (a.json) return JsonRow(names[i], c, e).dump();
+    if (a.json) return DumpJson(JsonRow(names[i], c, e));
     return names[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
               : c->BriefReport() + (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
+  };
+  // Every file gets its line: a failure while formatting one becomes that file's error line.
+  auto line_for = [&](size_t i) {
+    try {
+      return format_line(i, fits[i] ? &*fits[i] : nullptr, errors[i] ? &*errors[i] : nullptr);
+    } catch (...) {
+      fits[i].reset();
+      errors[i] = CurrentError(names[i]);
+      return format_line(i, nullptr, &*errors[i]);
+    }
   };
   // Lines come out in input order as soon as every earlier file is done.
   auto flush_ready = [&]() {
@@ -218,10 +240,8 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
       std::optional<Error> err;
       try {
         fit = Calibrate(Detect(inputs[i], a.detect), scene, opts);
-      } catch (const Error& e) {
-        err = e;
-      } catch (const std::exception& e) {
-        err = Error(ErrorCode::kInternal, names[i] + ": " + e.what());
+      } catch (...) {
+        err = CurrentError(names[i]);
       }
       std::lock_guard<std::mutex> lock(mu);
       fits[i] = std::move(fit);
@@ -348,7 +368,7 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
     }
     j["laws"] = laws;
     j["assumed"] = AssumedJson(AssumedValues(gs, true));
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
   } else if (a.csv) {
     std::cout << "rank,law,outcome,adequate,scatter_e,chi2_dof,aic,delta_aic,reason\n";
     int rank = 0;
@@ -400,7 +420,7 @@ void Run(const CalibrateArgs& a) {
   const CalibrationOptions opts = Options(a, gs);
   const Scene& scene = gs.scene;
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
-  MakeDetectOptions(a.detect);  // flag errors before any work
+  MakeDetectOptions(a.detect);            // flag errors before any work
   const auto pairs = PairInputs(a.files, a.detect);
   // The output path must be usable before the expensive work.
   if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
@@ -443,7 +463,7 @@ void Run(const CalibrateArgs& a) {
   nlohmann::json doc = ParamFileJson(c, prov, options_json);
   doc["assumed"] = AssumedJson(assumed);
   if (a.json) {
-    std::cout << doc.dump(2) << "\n";
+    std::cout << DumpJson(doc, 2) << "\n";
   } else if (a.csv) {
     PrintWarnings(c.warnings);
     const auto specs = CreateLaw(scene.law, scene)->Parameters();

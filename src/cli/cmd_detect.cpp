@@ -34,6 +34,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "commands.hpp"
 #include "detect_flags.hpp"
 #include "output.hpp"
@@ -261,7 +262,7 @@ void Run(const DetectArgs& a) {
                          {"message", e.what()}}}});
     }
   }
-  if (a.json) std::cout << (several ? all : all[0]).dump(2) << "\n";
+  if (a.json) std::cout << DumpJson(several ? all : all[0], 2) << "\n";
   if (any_failed)
     throw Error(ErrorCode::kSomeFailed, "some recordings failed (see the messages above)");
 }

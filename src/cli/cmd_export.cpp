@@ -12,6 +12,7 @@
 #include <string>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/export/export.hpp"
 #include "commands.hpp"
 
@@ -80,7 +81,7 @@ void Run(const ExportFlags& f) {
     throw Error(e.code(), m);
   }
   if (f.json) {
-    std::cout << ExportResultJson(r).dump(2) << "\n";
+    std::cout << DumpJson(ExportResultJson(r), 2) << "\n";
   } else {
     PrintHuman(r, f.out_dir);
   }

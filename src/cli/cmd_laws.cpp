@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 
@@ -112,7 +113,7 @@ void Run(const LawsFlags& f) {
     text << "  closed forms: " << (forms.empty() ? "none (integrated)" : forms) << "\n\n";
   }
   if (f.json) {
-    std::cout << nlohmann::json{{"laws", laws}}.dump(2) << "\n";
+    std::cout << DumpJson(nlohmann::json{{"laws", laws}}, 2) << "\n";
   } else {
     std::cout << text.str();
   }

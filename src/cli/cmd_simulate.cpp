@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
@@ -142,7 +143,7 @@ void Run(const SimulateFlags& f) {
   const std::vector<double> p = law->ParameterValues();
   const Simulation sim = Simulate(scene, *law, p, options);
   if (f.json) {
-    std::cout << ToJson(*law, p, sim).dump(2) << "\n";
+    std::cout << DumpJson(ToJson(*law, p, sim), 2) << "\n";
   } else if (f.csv) {
     PrintCsv(sim);
   } else {

@@ -27,6 +27,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "commands.hpp"
 #include "scene_flags.hpp"
@@ -263,7 +264,7 @@ void Run(const SynthFlags& f) {
   const nlohmann::json truth = TruthJson(spec, result);
   WriteAudio(f.output, result.recording.channels, result.recording.sample_rate_hz, ao);
   try {
-    WriteFileAtomically(truth_path, truth.dump(2) + "\n", wo);
+    WriteFileAtomically(truth_path, DumpJson(truth, 2) + "\n", wo);
   } catch (...) {
     std::error_code ec;
     fs::remove(f.output, ec);  // never one file without the other
@@ -284,7 +285,7 @@ void Run(const SynthFlags& f) {
                         {"impacts", impacts},
                         {"truth_source", TruthSourceName(spec.truth_source)}};
     if (spec.truth_source == TruthSource::kLaw) j["law"] = truth.at("law");
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
   } else {
     std::printf(
         "wrote %s (%s, %.0f Hz, %zu channel%s, %.2f s, %zu impact%s in %zu drop%s, seed %llu)\n",
@@ -295,7 +296,7 @@ void Run(const SynthFlags& f) {
     if (spec.truth_source == TruthSource::kLaw) {
       std::string params;
       for (const auto& [name, value] : truth.at("law").at("parameters").items()) {
-        params += " " + name + "=" + value.dump();
+        params += " " + name + "=" + DumpJson(value);
       }
       std::printf("impacts simulated with the contact law %s:%s\n", spec.scene.law.name.c_str(),
                   params.c_str());

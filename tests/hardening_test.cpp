@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -120,6 +121,111 @@ TEST(NonUtf8Path, BatchJsonWithJobsGivesEveryLine) {
   EXPECT_EQ(rows[2].at("status"), "input_missing");
   EXPECT_NE(rows[2].at("error").get<std::string>().find("gone\\xFD.flac"), std::string::npos);
   EXPECT_NE(r.err.find("1 of 3 recordings failed"), std::string::npos) << r.err;
+}
+
+// ---------------------------------------------------------------------------------------------
+// No non-finite result (issue 14 item 2)
+
+const std::string kBall = " --material steel --diameter 0.01";
+
+TEST(NonFinite, HugeGravityIsASceneErrorNamingTheFlag) {
+  // Before: "initial 4.08e+304, final mechanical -nan", stop step_limit, exit 0.
+  const CommandResult r =
+      Cli("simulate --g 1e308 --height 0.1 --law hertz-viscoelastic --json" + kBall);
+  EXPECT_EQ(r.exit_code, 8) << r.out << r.err;  // kBadScene
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  EXPECT_NE(r.err.find("environment.g_m_s2 = 1e+308"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("not a finite number"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--g"), std::string::npos) << r.err;
+}
+
+TEST(NonFinite, HugeImpactSpeedNamesTheFlagNotAnInternalFunction) {
+  for (const std::string& cmd :
+       {"simulate --impact-speed 1e308 --law linear-dashpot" + kBall,
+        "analyze " + kRecording + " --scene " + kScene + " --impact-speed 1e308",
+        "calibrate " + kRecording + " --scene " + kScene + " --impact-speed 1e308"}) {
+    const CommandResult r = Cli(cmd);
+    EXPECT_EQ(r.exit_code, 8) << cmd << "\n" << r.err;
+    EXPECT_NE(r.err.find("--impact-speed"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("1e+308"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("FlightModel"), std::string::npos) << r.err;
+  }
+}
+
+TEST(NonFinite, ExpressionForceThatIsNotFiniteIsAnError) {
+  // Before: "stop: step_limit (... the force is not finite ...)" and exit 0.
+  for (const std::string expr : {"0/0", "log(-1)", "exp(710)"}) {
+    const CommandResult r =
+        Cli("simulate --height 0.1 --law expression --expression '" + expr + "'" + kBall);
+    EXPECT_EQ(r.exit_code, 9) << expr << "\n" << r.out << r.err;  // kBadParameter
+    EXPECT_NE(r.err.find("law expression '" + expr + "'"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("force is not finite"), std::string::npos) << r.err;
+  }
+}
+
+TEST(NonFinite, SubnormalSetValueSaysTooSmall) {
+  const CommandResult r =
+      Cli("simulate --height 0.1 --law hertz-viscoelastic --set k=1e-308" + kBall);
+  EXPECT_EQ(r.exit_code, 9) << r.err;
+  EXPECT_NE(r.err.find("--set k=1e-308"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("too small"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("not a finite number"), std::string::npos) << r.err;
+  const CommandResult big =
+      Cli("simulate --height 0.1 --law hertz-viscoelastic --set k=1e309" + kBall);
+  EXPECT_EQ(big.exit_code, 9) << big.err;
+  EXPECT_NE(big.err.find("too large"), std::string::npos) << big.err;
+}
+
+// A 32-bit float WAV (format 3) holding `samples` at 48 kHz.
+void WriteFloatWav(const std::string& path, const std::vector<float>& samples) {
+  std::ofstream out(path, std::ios::binary);
+  auto u32 = [&](uint32_t v) { out.write(reinterpret_cast<const char*>(&v), 4); };
+  auto u16 = [&](uint16_t v) { out.write(reinterpret_cast<const char*>(&v), 2); };
+  const auto bytes = static_cast<uint32_t>(samples.size() * sizeof(float));
+  out.write("RIFF", 4);
+  u32(36 + bytes);
+  out.write("WAVEfmt ", 8);
+  u32(16);
+  u16(3);  // IEEE float
+  u16(1);
+  u32(48000);
+  u32(48000 * 4);
+  u16(4);
+  u16(32);
+  out.write("data", 4);
+  u32(bytes);
+  out.write(reinterpret_cast<const char*>(samples.data()), bytes);
+}
+
+TEST(NonFinite, AbsurdlyLoudFloatWavIsBadSamples) {
+  // Before: a float WAV of +-1e30 gave "3 impacts" with SNR -nan (exit 0).
+  ScratchDir dir("bc_harden");
+  const std::string wav = dir / "loud.wav";
+  std::vector<float> x(48000, 0.0f);
+  for (size_t i = 4800; i < x.size(); i += 9600) x[i] = (i / 9600) % 2 ? 1e30f : -1e30f;
+  WriteFloatWav(wav, x);
+  const CommandResult r = Cli("detect " + wav);
+  EXPECT_EQ(r.exit_code, 5) << r.out << r.err;  // kBadSamples
+  EXPECT_NE(r.err.find(wav), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("times full scale"), std::string::npos) << r.err;
+  // The int16 scale (+-32768, written by some software as float) is still read.
+  for (float& v : x) v = v > 0 ? 32767.0f : (v < 0 ? -32768.0f : 0.0f);
+  WriteFloatWav(wav, x);
+  const CommandResult ok = Cli("detect " + wav);
+  EXPECT_NE(ok.exit_code, 5) << ok.err;
+}
+
+TEST(NonFinite, LongUserStringsAreCutInMessages) {
+  ScratchDir dir("bc_harden");
+  const std::string scene = dir / "big.toml";
+  std::ofstream(scene) << "[ball]\nmaterial = \"steel\"\ndiameter_m = 0.01\n[drop]\n"
+                       << "height_m = 0.1\n[law]\nname = \"" << std::string(2'000'000, 'x')
+                       << "\"\n";
+  const CommandResult r = Cli("simulate --scene " + scene);
+  EXPECT_EQ(r.exit_code, 9) << r.err.substr(0, 300);
+  EXPECT_LT(r.err.size(), 1000u);
+  EXPECT_NE(r.err.find("unknown contact law 'xxxx"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("(2000000 bytes)"), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -147,19 +147,37 @@ double Quantile(std::vector<float>* v, double p) {
   return (*v)[k];
 }
 
-// NaN/Inf samples are an error naming the channel and frame; each channel's clipping report.
+// Largest sample magnitude accepted, in units of full scale (libsndfile reads integer formats
+// into [-1, 1] and float formats as stored, nominally [-1, 1]). 1e6 is 120 dB above full scale:
+// it admits float files written on the int16 scale (+-32768, a known quirk of some software)
+// with a margin of 30, and keeps the single-precision processing finite (Whiten sums x^2 over
+// 4096-sample blocks: 4096 * (1e6)^2 = 4e15, far below FLT_MAX = 3.4e38). A float file of
+// +-1e30 made every such sum overflow: "no bounce sequence" or an SNR of -nan (issue 14).
+constexpr double kMaxSampleMagnitude = 1e6;
+
+// NaN/Inf or absurdly large samples are an error naming the channel and frame; each channel's
+// clipping report.
 void CheckSamples(Audio* a) {
   const std::string& path = a->info.path;
   for (std::size_t c = 0; c < a->channels.size(); ++c) {
     const auto& x = a->channels[c];
     for (std::size_t i = 0; i < x.size(); ++i) {
-      if (!std::isfinite(x[i])) {
-        char msg[160];
+      const bool finite = std::isfinite(x[i]);
+      if (finite && std::abs(x[i]) <= kMaxSampleMagnitude) continue;
+      char msg[256];
+      if (finite) {
+        std::snprintf(msg, sizeof(msg),
+                      ": sample %g in channel %zu at frame %zu (%.6f s) is more than %g times "
+                      "full scale (a float file this loud is corrupt or mis-scaled: rescale it "
+                      "to +-1)",
+                      static_cast<double>(x[i]), c, i,
+                      static_cast<double>(i) / a->info.sample_rate_hz, kMaxSampleMagnitude);
+      } else {
         std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %zu (%.6f s)",
                       std::isnan(x[i]) ? "NaN" : "infinite", c, i,
                       static_cast<double>(i) / a->info.sample_rate_hz);
-        throw Error(ErrorCode::kBadSamples, path + msg);
       }
+      throw Error(ErrorCode::kBadSamples, path + msg);
     }
   }
   a->clipping.clear();

@@ -12,7 +12,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <random>
 #include <regex>
 #include <sstream>
 
@@ -422,25 +421,15 @@ void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& 
                                         " in this format (" + std::to_string(channels.size()) +
                                         " channels, " + std::to_string(sfinfo.samplerate) + " Hz)");
   }
-  // Same checks as every other output (directory exists, not a directory); WriteAudio
-  // replaces an existing file: callers enforce --force before calling it.
-  CheckOutputPath(path, WriteOptions{.force = true, .inputs = {}});
-
-  const fs::path target(path);
-  fs::path dir = target.parent_path();
-  if (dir.empty()) dir = ".";
-  std::random_device rd;
-  std::string tmp_name(".");  // (built step by step: GCC 12 warns falsely on "." + string)
-  tmp_name += target.filename().string();
-  tmp_name += ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(rd());
-  const fs::path tmp = dir / tmp_name;
-  auto fail = [&](const std::string& why) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw Error(ErrorCode::kOutput, path + ": " + why);
-  };
+  // The same atomic write as every other output (core/atomic_file.hpp: temporary file in the
+  // target's directory, fsync, rename, directory sync, mode kept, removed on SIGINT/SIGTERM).
+  // WriteAudio replaces an existing file: callers enforce --force before calling it.
+  AtomicFile out(path, WriteOptions{.force = true, .inputs = {}});
+  auto fail = [&](const std::string& why) { throw Error(ErrorCode::kOutput, path + ": " + why); };
   {
-    SndfilePtr f(sf_open(tmp.c_str(), SFM_WRITE, &sfinfo));
+    // libsndfile writes through the temporary file's descriptor and leaves it open (SF_FALSE):
+    // AtomicFile syncs, closes and renames it.
+    SndfilePtr f(sf_open_fd(out.fd(), SFM_WRITE, &sfinfo, SF_FALSE));
     if (!f) fail(std::string("cannot create the file: ") + sf_strerror(nullptr));
     // Values beyond full scale saturate instead of wrapping around in integer formats.
     sf_command(f.get(), SFC_SET_CLIPPING, nullptr, SF_TRUE);
@@ -464,13 +453,10 @@ void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& 
         fail(std::string("write failed: ") + sf_strerror(f.get()));
       }
     }
-    sf_write_sync(f.get());
     SNDFILE* raw = f.release();
-    if (sf_close(raw) != 0) fail("closing the file failed");
+    if (sf_close(raw) != 0) fail("closing the file failed");  // finishes headers/encoders
   }
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) fail("cannot rename the temporary file: " + ec.message());
+  out.Commit();
 }
 
 }  // namespace bouncecal

@@ -510,14 +510,15 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag("--no-scatter", args->no_scatter,
                 "no per-bounce scatter: timing noise only (synthetic recordings)");
   AddDetectFlags(sub, &args->detect);
-  sub->add_option("-o,--output", args->output, "write the parameter file (JSON) here");
+  AddOutputOption(sub, "-o,--output", &args->output, "write the parameter file (JSON) here");
   sub->add_flag("--force", args->force, "replace an existing output file");
   sub->add_flag("--json", args->json, "print the parameter-file object to stdout");
   sub->add_flag("--csv", args->csv, "print CSV");
   sub->add_option("--jobs", args->jobs, "worker threads (detection; --batch fits)");
   sub->add_flag("--batch", args->batch, "fit each file separately, one summary line per file");
-  sub->add_option("--report", args->report.html, "also write the HTML report of this fit");
-  sub->add_option("--plot", args->report.plot, "also write its figures: FILE.svg or FILE.png");
+  AddOutputOption(sub, "--report", &args->report.html, "also write the HTML report of this fit");
+  AddOutputOption(sub, "--plot", &args->report.plot,
+                  "also write its figures: FILE.svg or FILE.png");
   sub->add_flag("--quiet", args->quiet, "no progress line on stderr (shown only on a terminal)");
   sub->callback([args]() { Run(*args); });
 }

@@ -279,7 +279,7 @@ void RegisterDetect(CLI::App& app) {
   sub->add_option("--hop-ms", args->hop_ms, "STFT hop in ms (0 = auto, ~0.33 ms)")
       ->default_val(0.0);
   sub->add_flag("--no-refine", args->no_refine, "Skip the sub-sample change-point refinement");
-  sub->add_option("--click-track", args->click_track,
+  AddOutputOption(sub, "--click-track", &args->click_track,
                   "write the recording with a click at every impact found (WAV, FLAC, ...)");
   sub->add_flag("--force", args->force, "replace an existing --click-track file");
   sub->add_flag("--json", args->json, "JSON on stdout");

@@ -30,6 +30,7 @@
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "commands.hpp"
+#include "output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -315,7 +316,7 @@ void RegisterSynth(CLI::App& app) {
   auto flags = std::make_shared<SynthFlags>();
   CLI::App* sub = app.add_subcommand(
       "synth", "render a test recording of a bouncing ball plus its ground truth (OUT.truth.json)");
-  sub->add_option("-o,--output", flags->output,
+  AddOutputOption(sub, "-o,--output", &flags->output,
                   "output audio (.wav .flac .ogg .aiff); the truth goes to <stem>.truth.json");
   sub->add_flag("--force", flags->force, "replace existing output files");
   sub->add_option("--preset", flags->preset,

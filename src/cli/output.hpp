@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/warning.hpp"
@@ -18,6 +19,12 @@ nlohmann::json JsonNumber(const std::optional<double>& v);
 
 // [{"code", "message", "impact": int|null}, ...]
 nlohmann::json WarningsJson(const std::vector<Warning>& warnings);
+
+// An option naming a file or directory the command writes (-o, --click-track, --report, ...).
+// An empty value (`-o ''`) would read as "not given" and write nothing with exit 0: it is
+// refused while parsing with exit 11 (ErrorCode::kOutput) and a message naming the option.
+CLI::Option* AddOutputOption(CLI::App* sub, const std::string& names, std::string* path,
+                             const std::string& help);
 
 // "bouncecal: warning [code]: message" on stderr, one line each.
 void PrintWarnings(const std::vector<Warning>& warnings);

@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "test_util.hpp"
 
@@ -302,6 +303,50 @@ TEST(ThirdPartyLogging, FailedFitPrintsOnlyOurLines) {
   std::istringstream lines(r.err);
   std::string line;
   while (std::getline(lines, line)) EXPECT_EQ(line.rfind("bouncecal: ", 0), 0u) << line;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Long recordings (issue 14 item 1): tracking caps are reported, not silent
+
+// 17 copies of the bundled 7-second drop (51 impacts each) back to back: 867 impacts, more
+// than the 300 candidates tracking keeps. Before: fewer drops and no word about it.
+TEST(LongRecording, CappedTrackingIsACodedWarning) {
+  ScratchDir dir("bc_harden");
+  const bouncecal::Audio one = bouncecal::ReadAudio(kRecording);
+  std::vector<std::vector<float>> many(one.channels.size());
+  for (int copy = 0; copy < 17; ++copy) {
+    for (size_t c = 0; c < many.size(); ++c) {
+      many[c].insert(many[c].end(), one.channels[c].begin(), one.channels[c].end());
+    }
+  }
+  const std::string wav = dir / "many_drops.wav";
+  bouncecal::WriteAudio(wav, many, one.info.sample_rate_hz);
+  const CommandResult r = Cli("detect --json " + wav);
+  ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 12) << r.err;
+  EXPECT_NE(r.err.find("warning [detection_capped]"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("\"detection_capped\""), std::string::npos);
+  EXPECT_NE(r.err.find("only the strongest 300"), std::string::npos) << r.err;
+}
+
+// Output-size limits are checked before the work, with the limit in the message.
+TEST(OutputLimits, SimulateRefusesMoreImpactsThanTheLimit) {
+  // Before: accepted, about an hour of work and tens of GB of JSON.
+  const CommandResult r =
+      Cli("simulate --height 0.1 --law hertz-viscoelastic --json"
+          " --max-impacts 100000000" +
+          kBall);
+  EXPECT_EQ(r.exit_code, 2) << r.err;  // kUsage
+  EXPECT_TRUE(r.out.empty());
+  EXPECT_NE(r.err.find("--max-impacts 100000000: must be in [1, 1000000]"), std::string::npos)
+      << r.err;
+  ScratchDir dir("bc_harden");
+  const std::string scene = dir / "many.toml";
+  std::ofstream(scene) << "[ball]\nmaterial = \"steel\"\ndiameter_m = 0.01\n[drop]\n"
+                       << "height_m = 0.1\n[limits]\nmax_impacts = 2000000\n";
+  const CommandResult s = Cli("simulate --scene " + scene);
+  EXPECT_EQ(s.exit_code, 8) << s.err;  // kBadScene
+  EXPECT_NE(s.err.find("max_impacts"), std::string::npos) << s.err;
+  EXPECT_NE(s.err.find("1000000"), std::string::npos) << s.err;
 }
 
 }  // namespace

@@ -181,7 +181,12 @@ void Run(const SimulateFlags& f) {
     scene.limits.horizon_s = *f.horizon_s;
   }
   if (f.max_impacts) {
-    if (*f.max_impacts < 1) throw Error(ErrorCode::kUsage, "--max-impacts: must be >= 1");
+    if (*f.max_impacts < 1 || *f.max_impacts > kMaxImpactsLimit) {
+      // Checked before the work: 10^8 impacts would have run for an hour and written ~30 GB.
+      throw Error(ErrorCode::kUsage, "--max-impacts " + std::to_string(*f.max_impacts) +
+                                         ": must be in [1, " + std::to_string(kMaxImpactsLimit) +
+                                         "] (about 300 bytes of JSON per impact)");
+    }
     scene.limits.max_impacts = *f.max_impacts;
   }
   SimulatorOptions options;

@@ -49,7 +49,7 @@
 //
 //   [limits]
 //   horizon_s = 60.0           # > 0
-//   max_impacts = 10000        # integer >= 1
+//   max_impacts = 10000        # integer in [1, 1000000] (kMaxImpactsLimit)
 //   rest_speed_m_s = 1e-4      # >= 0
 //
 // Material presets (density kg/m^3, E Pa, nu): see MaterialPresets() below and `bouncecal laws`.
@@ -406,8 +406,10 @@ void Validate(const Scene& s, Checker* checker) {
   }
   // Limits.
   c.Positive("limits.horizon_s", limits.horizon_s);
-  if (limits.max_impacts < 1) {
-    c.Fail("limits.max_impacts", "must be >= 1 (got " + std::to_string(limits.max_impacts) + ")");
+  if (limits.max_impacts < 1 || limits.max_impacts > kMaxImpactsLimit) {
+    c.Fail("limits.max_impacts", "must be in [1, " + std::to_string(kMaxImpactsLimit) + "] (got " +
+                                     std::to_string(limits.max_impacts) +
+                                     "; the limit keeps the output under ~300 MB of JSON)");
   }
   c.NonNegative("limits.rest_speed_m_s", limits.rest_speed_m_s);
 }
@@ -734,7 +736,11 @@ class SceneReader {
       } else if (key == "max_impacts") {
         auto i = node.value_exact<int64_t>();
         if (!i) Fail(node, full, "expected an integer");
-        if (*i < 1 || *i > 100000000) Fail(node, full, "must be in [1, 1e8]");
+        if (*i < 1 || *i > kMaxImpactsLimit) {
+          Fail(node, full,
+               "must be in [1, " + std::to_string(kMaxImpactsLimit) +
+                   "] (the limit keeps the output under ~300 MB of JSON)");
+        }
         s->limits.max_impacts = static_cast<int>(*i);
       } else if (key == "rest_speed_m_s") {
         s->limits.rest_speed_m_s = NonNegative(node, full);

@@ -45,6 +45,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
 
 namespace fs = std::filesystem;
@@ -486,7 +487,7 @@ std::vector<Corpus> RenderCorpus(const std::vector<std::string>& presets, int se
       if (keep) {
         std::FILE* tf = std::fopen((c.path + ".truth.json").c_str(), "w");
         if (tf) {
-          std::fputs(TruthJson(spec, res).dump(1).c_str(), tf);
+          std::fputs(DumpJson(TruthJson(spec, res), 1).c_str(), tf);
           std::fclose(tf);
         }
       }

@@ -17,6 +17,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
 
 namespace {
@@ -80,7 +81,7 @@ int main(int argc, char** argv) {
           const std::string stem = out_dir + "/" + name + "-s" + std::to_string(spec.render.seed);
           WriteAudio(stem + ".wav", r.recording.channels, r.recording.sample_rate_hz,
                      AudioWriteOptions{"PCM_24"});
-          WriteFileAtomically(stem + ".truth.json", TruthJson(spec, r).dump(2) + "\n",
+          WriteFileAtomically(stem + ".truth.json", DumpJson(TruthJson(spec, r), 2) + "\n",
                               WriteOptions{.force = true, .inputs = {}});
         }
       }

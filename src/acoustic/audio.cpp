@@ -12,7 +12,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <random>
 #include <regex>
 #include <sstream>
 
@@ -147,19 +146,37 @@ double Quantile(std::vector<float>* v, double p) {
   return (*v)[k];
 }
 
-// NaN/Inf samples are an error naming the channel and frame; each channel's clipping report.
+// Largest sample magnitude accepted, in units of full scale (libsndfile reads integer formats
+// into [-1, 1] and float formats as stored, nominally [-1, 1]). 1e6 is 120 dB above full scale:
+// it admits float files written on the int16 scale (+-32768, a known quirk of some software)
+// with a margin of 30, and keeps the single-precision processing finite (Whiten sums x^2 over
+// 4096-sample blocks: 4096 * (1e6)^2 = 4e15, far below FLT_MAX = 3.4e38). A float file of
+// +-1e30 made every such sum overflow: "no bounce sequence" or an SNR of -nan (issue 14).
+constexpr double kMaxSampleMagnitude = 1e6;
+
+// NaN/Inf or absurdly large samples are an error naming the channel and frame; each channel's
+// clipping report.
 void CheckSamples(Audio* a) {
   const std::string& path = a->info.path;
   for (std::size_t c = 0; c < a->channels.size(); ++c) {
     const auto& x = a->channels[c];
     for (std::size_t i = 0; i < x.size(); ++i) {
-      if (!std::isfinite(x[i])) {
-        char msg[160];
+      const bool finite = std::isfinite(x[i]);
+      if (finite && std::abs(x[i]) <= kMaxSampleMagnitude) continue;
+      char msg[256];
+      if (finite) {
+        std::snprintf(msg, sizeof(msg),
+                      ": sample %g in channel %zu at frame %zu (%.6f s) is more than %g times "
+                      "full scale (a float file this loud is corrupt or mis-scaled: rescale it "
+                      "to +-1)",
+                      static_cast<double>(x[i]), c, i,
+                      static_cast<double>(i) / a->info.sample_rate_hz, kMaxSampleMagnitude);
+      } else {
         std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %zu (%.6f s)",
                       std::isnan(x[i]) ? "NaN" : "infinite", c, i,
                       static_cast<double>(i) / a->info.sample_rate_hz);
-        throw Error(ErrorCode::kBadSamples, path + msg);
       }
+      throw Error(ErrorCode::kBadSamples, path + msg);
     }
   }
   a->clipping.clear();
@@ -404,25 +421,15 @@ void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& 
                                         " in this format (" + std::to_string(channels.size()) +
                                         " channels, " + std::to_string(sfinfo.samplerate) + " Hz)");
   }
-  // Same checks as every other output (directory exists, not a directory); WriteAudio
-  // replaces an existing file: callers enforce --force before calling it.
-  CheckOutputPath(path, WriteOptions{.force = true, .inputs = {}});
-
-  const fs::path target(path);
-  fs::path dir = target.parent_path();
-  if (dir.empty()) dir = ".";
-  std::random_device rd;
-  std::string tmp_name(".");  // (built step by step: GCC 12 warns falsely on "." + string)
-  tmp_name += target.filename().string();
-  tmp_name += ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(rd());
-  const fs::path tmp = dir / tmp_name;
-  auto fail = [&](const std::string& why) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw Error(ErrorCode::kOutput, path + ": " + why);
-  };
+  // The same atomic write as every other output (core/atomic_file.hpp: temporary file in the
+  // target's directory, fsync, rename, directory sync, mode kept, removed on SIGINT/SIGTERM).
+  // WriteAudio replaces an existing file: callers enforce --force before calling it.
+  AtomicFile out(path, WriteOptions{.force = true, .inputs = {}});
+  auto fail = [&](const std::string& why) { throw Error(ErrorCode::kOutput, path + ": " + why); };
   {
-    SndfilePtr f(sf_open(tmp.c_str(), SFM_WRITE, &sfinfo));
+    // libsndfile writes through the temporary file's descriptor and leaves it open (SF_FALSE):
+    // AtomicFile syncs, closes and renames it.
+    SndfilePtr f(sf_open_fd(out.fd(), SFM_WRITE, &sfinfo, SF_FALSE));
     if (!f) fail(std::string("cannot create the file: ") + sf_strerror(nullptr));
     // Values beyond full scale saturate instead of wrapping around in integer formats.
     sf_command(f.get(), SFC_SET_CLIPPING, nullptr, SF_TRUE);
@@ -446,13 +453,10 @@ void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& 
         fail(std::string("write failed: ") + sf_strerror(f.get()));
       }
     }
-    sf_write_sync(f.get());
     SNDFILE* raw = f.release();
-    if (sf_close(raw) != 0) fail("closing the file failed");
+    if (sf_close(raw) != 0) fail("closing the file failed");  // finishes headers/encoders
   }
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) fail("cannot rename the temporary file: " + ec.message());
+  out.Commit();
 }
 
 }  // namespace bouncecal

@@ -202,6 +202,32 @@ int LongestSequence(const std::vector<Sequence>& seqs) {
   return best;
 }
 
+// Tracking keeps at most TrackOptions::max_candidates onsets (the strongest) and
+// max_sequences drops, whatever the recording's length: a long recording of many drops loses
+// drops there (a 10-minute file of 65 drops gave 16). Until the caps scale with the length,
+// say so instead of dropping them silently (issue 14).
+void CapWarnings(std::size_t candidates, std::size_t sequences, double duration_s,
+                 const TrackOptions& to, std::vector<Warning>* warnings) {
+  char msg[400];
+  if (candidates > static_cast<std::size_t>(to.max_candidates)) {
+    std::snprintf(
+        msg, sizeof msg,
+        "%zu onset candidates in %.1f s: only the strongest %d entered sequence "
+        "tracking (TrackOptions::max_candidates), so weaker drops or bounces may be "
+        "missing; detect shorter windows of a long recording (DetectOptions::start_s/end_s)",
+        candidates, duration_s, to.max_candidates);
+    warnings->push_back({"detection_capped", msg, -1});
+  }
+  if (sequences >= static_cast<std::size_t>(to.max_sequences)) {
+    std::snprintf(msg, sizeof msg,
+                  "%zu bounce sequences found, the most tracked (TrackOptions::max_sequences): "
+                  "further drops in the %.1f s recording are not reported; detect shorter "
+                  "windows (DetectOptions::start_s/end_s)",
+                  sequences, duration_s);
+    warnings->push_back({"detection_capped", msg, -1});
+  }
+}
+
 // Stage list for one signal: onsets -> tracking -> guided search -> timing -> plausibility ->
 // re-timing. `clip_peak`: the level at which this signal is clipped (0: not clipped).
 SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double clip_peak,
@@ -223,6 +249,7 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   to.min_interval_s = options.min_interval_s;
   to.min_sequence_impacts = options.min_sequence_impacts;
   out.sequences = TrackSequences(out.candidates, duration_s, to);
+  CapWarnings(out.candidates.size(), out.sequences.size(), duration_s, to, &out.warnings);
   if (options.guided_search) ExtendByTemplate(onsets, x, duration_s, to, &out.sequences);
 
   TimingOptions tim;

@@ -29,6 +29,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/kinematics.hpp"
 #include "bouncecal/fit/scene_checks.hpp"
 #include "commands.hpp"
@@ -249,7 +250,7 @@ void Run(const AnalyzeFlags& flags) {
     }
   }
   // One recording and one sequence: the object itself (the shape of one analysis).
-  if (flags.json) std::cout << (all.size() == 1 && !several ? all[0] : all).dump(2) << "\n";
+  if (flags.json) std::cout << DumpJson(all.size() == 1 && !several ? all[0] : all, 2) << "\n";
   if (any_failed)
     throw Error(ErrorCode::kSomeFailed, "some recordings failed (see the messages above)");
 }

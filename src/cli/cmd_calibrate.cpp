@@ -23,6 +23,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/calibrate.hpp"
 #include "bouncecal/fit/scene_checks.hpp"
 #include "bouncecal/io/param_file.hpp"
@@ -80,6 +81,21 @@ std::vector<CalibrationInput> Detect(const std::pair<std::string, std::string>& 
   return out;
 }
 
+// The exception in flight as an Error naming `input`: bouncecal errors as they are, anything
+// else as kInternal. Worker threads call it from catch (...) so nothing escapes a thread
+// (std::terminate would end the whole batch without its per-file lines).
+Error CurrentError(const std::string& input) {
+  try {
+    throw;
+  } catch (const Error& e) {
+    return e;
+  } catch (const std::exception& e) {
+    return Error(ErrorCode::kInternal, input + ": " + e.what());
+  } catch (...) {
+    return Error(ErrorCode::kInternal, input + ": unknown exception");
+  }
+}
+
 // Detects every input on up to `jobs` threads; throws the first input's error in input order.
 std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string, std::string>>& in,
                                         const DetectFlags& flags, int jobs) {
@@ -90,10 +106,8 @@ std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string,
     for (size_t i = next++; i < in.size(); i = next++) {
       try {
         per[i] = Detect(in[i], flags);
-      } catch (const Error& e) {
-        errors[i] = e;
-      } catch (const std::exception& e) {
-        errors[i] = Error(ErrorCode::kInternal, in[i].first + ": " + e.what());
+      } catch (...) {
+        errors[i] = CurrentError(in[i].first);
       }
     }
   };
@@ -154,14 +168,22 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     summary += CsvHeader(specs) + "\n";
     if (a.output.empty()) std::cout << CsvHeader(specs) << "\n" << std::flush;
   }
-  auto line_for = [&](size_t i) {
-    const Calibration* c = fits[i] ? &*fits[i] : nullptr;
-    const Error* e = errors[i] ? &*errors[i] : nullptr;
+  auto format_line = [&](size_t i, const Calibration* c, const Error* e) {
     if (a.csv) return CsvRow(names[i], specs, c, e);
-    if (a.json) return CalibrationRowJson(names[i], c, e).dump();
+    if (a.json) return DumpJson(CalibrationRowJson(names[i], c, e));
     return names[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
               : c->BriefReport() + (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
+  };
+  // Every file gets its line: a failure while formatting one becomes that file's error line.
+  auto line_for = [&](size_t i) {
+    try {
+      return format_line(i, fits[i] ? &*fits[i] : nullptr, errors[i] ? &*errors[i] : nullptr);
+    } catch (...) {
+      fits[i].reset();
+      errors[i] = CurrentError(names[i]);
+      return format_line(i, nullptr, &*errors[i]);
+    }
   };
   // Lines come out in input order as soon as every earlier file is done.
   auto flush_ready = [&]() {
@@ -179,10 +201,8 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
       std::optional<Error> err;
       try {
         fit = Calibrate(Detect(inputs[i], a.detect), scene, opts);
-      } catch (const Error& e) {
-        err = e;
-      } catch (const std::exception& e) {
-        err = Error(ErrorCode::kInternal, names[i] + ": " + e.what());
+      } catch (...) {
+        err = CurrentError(names[i]);
       }
       std::lock_guard<std::mutex> lock(mu);
       fits[i] = std::move(fit);
@@ -297,9 +317,10 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
     if (!r.adequate) inadequate.push_back(r.fit.law + " (" + FitOutcomeName(r.fit.outcome) + ")");
   }
   if (a.json) {
-    std::cout
-        << LawComparisonJson(rows, prov, options_json, AssumedJson(AssumedValues(gs, true))).dump(2)
-        << "\n";
+    std::cout << DumpJson(LawComparisonJson(rows, prov, options_json,
+                                            AssumedJson(AssumedValues(gs, true))),
+                          2)
+              << "\n";
   } else if (a.csv) {
     std::cout << "rank,law,outcome,adequate,scatter_e,chi2_dof,aic,delta_aic,reason\n";
     int rank = 0;
@@ -395,7 +416,7 @@ void Run(const CalibrateArgs& a) {
   nlohmann::json doc = CalibrationJson(c, prov, options_json);
   doc["assumed"] = AssumedJson(assumed);
   if (a.json) {
-    std::cout << doc.dump(2) << "\n";
+    std::cout << DumpJson(doc, 2) << "\n";
   } else if (a.csv) {
     PrintWarnings(c.warnings);
     const auto specs = CreateLaw(scene.law, scene)->Parameters();
@@ -442,14 +463,15 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag("--no-scatter", args->no_scatter,
                 "no per-bounce scatter: timing noise only (synthetic recordings)");
   AddDetectFlags(sub, &args->detect);
-  sub->add_option("-o,--output", args->output, "write the parameter file (JSON) here");
+  AddOutputOption(sub, "-o,--output", &args->output, "write the parameter file (JSON) here");
   sub->add_flag("--force", args->force, "replace an existing output file");
   sub->add_flag("--json", args->json, "print the parameter-file object to stdout");
   sub->add_flag("--csv", args->csv, "print CSV");
   sub->add_option("--jobs", args->jobs, "worker threads (detection; --batch fits)");
   sub->add_flag("--batch", args->batch, "fit each file separately, one summary line per file");
-  sub->add_option("--report", args->report.html, "also write the HTML report of this fit");
-  sub->add_option("--plot", args->report.plot, "also write its figures: FILE.svg or FILE.png");
+  AddOutputOption(sub, "--report", &args->report.html, "also write the HTML report of this fit");
+  AddOutputOption(sub, "--plot", &args->report.plot,
+                  "also write its figures: FILE.svg or FILE.png");
   sub->add_flag("--quiet", args->quiet, "no progress line on stderr (shown only on a terminal)");
   sub->callback([args]() { Run(*args); });
 }

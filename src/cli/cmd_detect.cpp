@@ -27,6 +27,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "commands.hpp"
 #include "detect_flags.hpp"
 #include "output.hpp"
@@ -175,7 +176,7 @@ void Run(const DetectArgs& a) {
       if (a.json) all.push_back(FailedInputJson(name, e.code(), e.what()));
     }
   }
-  if (a.json) std::cout << (several ? all : all[0]).dump(2) << "\n";
+  if (a.json) std::cout << DumpJson(several ? all : all[0], 2) << "\n";
   if (any_failed)
     throw Error(ErrorCode::kSomeFailed, "some recordings failed (see the messages above)");
 }
@@ -192,7 +193,7 @@ void RegisterDetect(CLI::App& app) {
   sub->add_option("--hop-ms", args->hop_ms, "STFT hop in ms (0 = auto, ~0.33 ms)")
       ->default_val(0.0);
   sub->add_flag("--no-refine", args->no_refine, "Skip the sub-sample change-point refinement");
-  sub->add_option("--click-track", args->click_track,
+  AddOutputOption(sub, "--click-track", &args->click_track,
                   "write the recording with a click at every impact found (WAV, FLAC, ...)");
   sub->add_flag("--force", args->force, "replace an existing --click-track file");
   sub->add_flag("--json", args->json, "JSON on stdout");

@@ -12,8 +12,10 @@
 #include <string>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/export/export.hpp"
 #include "commands.hpp"
+#include "output.hpp"
 
 namespace bouncecal::cli {
 namespace {
@@ -80,7 +82,7 @@ void Run(const ExportFlags& f) {
     throw Error(e.code(), m);
   }
   if (f.json) {
-    std::cout << ExportResultJson(r).dump(2) << "\n";
+    std::cout << DumpJson(ExportResultJson(r), 2) << "\n";
   } else {
     PrintHuman(r, f.out_dir);
   }
@@ -96,7 +98,8 @@ void RegisterExport(CLI::App& app) {
   sub->add_option("--to", flags->to, "target simulator: lammps, liggghts or yade")->required();
   sub->add_option("--scene", flags->scene,
                   "bounce (the fit's drop, default) or packing (seed paper's validation)");
-  sub->add_option("-o,--output", flags->out_dir, "output directory (must not exist)")->required();
+  AddOutputOption(sub, "-o,--output", &flags->out_dir, "output directory (must not exist)")
+      ->required();
   sub->add_flag("--json", flags->json, "the mapping as JSON on stdout");
   sub->add_flag("--force", flags->force,
                 "replace an existing directory's files; export a fit that did not converge");

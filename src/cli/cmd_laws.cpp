@@ -15,6 +15,7 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/io/schema.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 
@@ -97,7 +98,7 @@ void Run(const LawsFlags& f) {
     text << "  closed forms: " << (forms.empty() ? "none (integrated)" : forms) << "\n\n";
   }
   if (f.json) {
-    std::cout << LawsJson(laws).dump(2) << "\n";
+    std::cout << DumpJson(LawsJson(laws), 2) << "\n";
   } else if (f.csv) {
     std::cout << csv.str();
   } else {

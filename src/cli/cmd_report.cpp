@@ -176,8 +176,8 @@ void RegisterReport(CLI::App& app) {
       "detect, analyze and fit recordings; write a self-contained HTML report and/or "
       "a static figure");
   sub->add_option("files", args->files, "recordings (several: one joint fit)")->required();
-  sub->add_option("-o,--output", args->paths.html, "write the HTML report here");
-  sub->add_option("--plot", args->paths.plot,
+  AddOutputOption(sub, "-o,--output", &args->paths.html, "write the HTML report here");
+  AddOutputOption(sub, "--plot", &args->paths.plot,
                   "write the same charts as a static figure, FILE.svg or FILE.png (gnuplot)");
   sub->add_flag("--force", args->paths.force, "replace existing output files");
   sub->add_flag("--quiet", args->quiet, "no progress line on stderr (shown only on a terminal)");

@@ -12,10 +12,13 @@
 #include <iostream>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
 #include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
@@ -91,6 +94,54 @@ Scene ParamsScene(const SimulateFlags& f) {
   return ReplayFromParamFile(ReadParamFile(f.params_file), f.params_file).scene;
 }
 
+// "law NAME (expression '...')" or "law NAME (k = ..., A = ...)": what produced a result.
+std::string LawLabel(const Scene& scene, const ContactLaw& law, const std::vector<double>& p) {
+  std::string label = "law " + Abbreviate(law.Name());
+  if (!scene.law.expression.empty()) return label + " '" + Abbreviate(scene.law.expression) + "'";
+  for (size_t i = 0; i < p.size(); ++i) {
+    char value[32];
+    std::snprintf(value, sizeof value, "%g", p[i]);
+    label += (i == 0 ? " (" : ", ") + law.Parameters()[i].name + " = " + value;
+  }
+  return label + (p.empty() ? "" : ")");
+}
+
+// A simulation the integrator gave up on, or with a non-finite number anywhere, is not a
+// result: exit 9 naming the law and its parameters (README "Exit codes"), never "inf"/"nan" or
+// a JSON null where a number is documented.
+void CheckUsable(const Scene& scene, const ContactLaw& law, const std::vector<double>& p,
+                 const Simulation& sim) {
+  if (sim.stop_reason == StopReason::kStepLimit) {
+    throw Error(ErrorCode::kBadParameter,
+                "simulate: " + LawLabel(scene, law, p) + ": no usable result: " + sim.stop_detail);
+  }
+  const EnergyLedger& en = sim.energy;
+  const std::pair<const char*, double> ledger[] = {
+      {"initial", en.initial_j},
+      {"final mechanical", en.final_mechanical_j},
+      {"dissipated in contacts", en.dissipated_contact_j},
+      {"dissipated by drag", en.dissipated_drag_j},
+      {"internal", en.internal_j},
+      {"balance error", en.balance_error_j}};
+  std::string bad;
+  for (const auto& [name, value] : ledger) {
+    if (!std::isfinite(value) && bad.empty()) bad = std::string("energy ") + name;
+  }
+  for (size_t k = 0; k < sim.impacts.size() && bad.empty(); ++k) {
+    const SimImpact& i = sim.impacts[k];
+    for (double v :
+         {i.time_s, i.v_in_m_s, i.v_out_m_s, i.contact_s, i.peak_overlap_m, i.peak_force_n}) {
+      if (!std::isfinite(v)) bad = "impact " + std::to_string(k);
+    }
+  }
+  if (!bad.empty()) {
+    throw Error(ErrorCode::kBadParameter, "simulate: " + LawLabel(scene, law, p) + ": the " + bad +
+                                              " is not a finite number (the scene's "
+                                              "values or the law's parameters are out of the "
+                                              "range the simulation can represent)");
+  }
+}
+
 void Run(const SimulateFlags& f) {
   if (f.json && f.csv) throw Error(ErrorCode::kUsage, "--json and --csv are exclusive");
   Scene scene = f.params_file.empty() ? ResolveScene(f.scene) : ParamsScene(f);
@@ -101,7 +152,12 @@ void Run(const SimulateFlags& f) {
     scene.limits.horizon_s = *f.horizon_s;
   }
   if (f.max_impacts) {
-    if (*f.max_impacts < 1) throw Error(ErrorCode::kUsage, "--max-impacts: must be >= 1");
+    if (*f.max_impacts < 1 || *f.max_impacts > kMaxImpactsLimit) {
+      // Checked before the work: 10^8 impacts would have run for an hour and written ~30 GB.
+      throw Error(ErrorCode::kUsage, "--max-impacts " + std::to_string(*f.max_impacts) +
+                                         ": must be in [1, " + std::to_string(kMaxImpactsLimit) +
+                                         "] (about 300 bytes of JSON per impact)");
+    }
     scene.limits.max_impacts = *f.max_impacts;
   }
   SimulatorOptions options;
@@ -112,8 +168,9 @@ void Run(const SimulateFlags& f) {
   const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
   const std::vector<double> p = law->ParameterValues();
   const Simulation sim = Simulate(scene, *law, p, options);
+  CheckUsable(scene, *law, p, sim);
   if (f.json) {
-    std::cout << SimulationJson(scene, *law, p, sim).dump(2) << "\n";
+    std::cout << DumpJson(SimulationJson(scene, *law, p, sim), 2) << "\n";
   } else if (f.csv) {
     PrintCsv(sim);
   } else {

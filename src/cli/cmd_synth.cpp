@@ -29,8 +29,10 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "commands.hpp"
+#include "output.hpp"
 #include "scene_flags.hpp"
 
 namespace bouncecal::cli {
@@ -272,7 +274,7 @@ void Run(const SynthFlags& f) {
   const nlohmann::json truth = TruthJson(spec, result);
   WriteAudio(f.output, result.recording.channels, result.recording.sample_rate_hz, ao);
   try {
-    WriteFileAtomically(truth_path, truth.dump(2) + "\n", wo);
+    WriteFileAtomically(truth_path, DumpJson(truth, 2) + "\n", wo);
   } catch (...) {
     std::error_code ec;
     fs::remove(f.output, ec);  // never one file without the other
@@ -294,7 +296,7 @@ void Run(const SynthFlags& f) {
                         {"impacts", impacts},
                         {"truth_source", TruthSourceName(spec.truth_source)}};
     j["law"] = SimulatedLawJson(spec);
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
   } else {
     std::printf(
         "wrote %s (%s, %.0f Hz, %zu channel%s, %.2f s, %zu impact%s in %zu drop%s, seed %llu)\n",
@@ -305,7 +307,7 @@ void Run(const SynthFlags& f) {
     if (spec.truth_source == TruthSource::kLaw) {
       std::string params;
       for (const auto& [name, value] : truth.at("law").at("parameters").items()) {
-        params += " " + name + "=" + value.dump();
+        params += " " + name + "=" + DumpJson(value);
       }
       std::printf("impacts simulated with the contact law %s:%s\n", spec.scene.law.name.c_str(),
                   params.c_str());
@@ -324,7 +326,7 @@ void RegisterSynth(CLI::App& app) {
   auto flags = std::make_shared<SynthFlags>();
   CLI::App* sub = app.add_subcommand(
       "synth", "render a test recording of a bouncing ball plus its ground truth (OUT.truth.json)");
-  sub->add_option("-o,--output", flags->output,
+  AddOutputOption(sub, "-o,--output", &flags->output,
                   "output audio (.wav .flac .ogg .aiff); the truth goes to <stem>.truth.json");
   sub->add_flag("--force", flags->force, "replace existing output files");
   sub->add_option("--preset", flags->preset,

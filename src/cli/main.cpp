@@ -2,13 +2,30 @@
 #include <cstdio>
 #include <exception>
 
+#include <glog/logging.h>
 #include <CLI/CLI.hpp>
 
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
 #include "commands.hpp"
 
+namespace {
+
+// Ceres logs through glog: without initialisation every failed fit printed "WARNING: Logging
+// before InitGoogleLogging() is written to STDERR" and its own "E... trust_region_minimizer.cc"
+// lines. The solver's outcome and message already reach the user through our own messages
+// (calibrate.hpp: FitOutcome, Calibration::message), so glog keeps only FATAL (which aborts
+// anyway) and writes no log files. Done here, once: the library holds no global state.
+void QuietThirdPartyLogging(const char* argv0) {
+  FLAGS_logtostderr = true;  // no files under /tmp
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  google::InitGoogleLogging(argv0);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  QuietThirdPartyLogging(argv[0]);
   // A SIGINT/SIGTERM mid-write removes the temporary file; finished outputs stay complete.
   bouncecal::InstallTempFileCleanupOnSignals();
   CLI::App app{"bouncecal " BOUNCECAL_VERSION

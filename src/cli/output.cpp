@@ -2,7 +2,19 @@
 
 #include <cstdio>
 
+#include "bouncecal/core/error.hpp"
+
 namespace bouncecal::cli {
+
+CLI::Option* AddOutputOption(CLI::App* sub, const std::string& names, std::string* path,
+                             const std::string& help) {
+  const std::string shown = names.substr(names.rfind(',') + 1);  // "--output" of "-o,--output"
+  return sub->add_option(names, *path, help)->each([shown](const std::string& value) {
+    if (value.empty()) {
+      throw Error(ErrorCode::kOutput, shown + ": the output path is empty (give a file name)");
+    }
+  });
+}
 
 void PrintWarnings(const std::vector<Warning>& warnings) {
   for (const Warning& w : warnings)

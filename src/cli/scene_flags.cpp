@@ -11,8 +11,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
+#include <utility>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 
 namespace bouncecal::cli {
@@ -78,6 +81,29 @@ void AddSceneFlags(CLI::App* sub, SceneFlags* flags, bool with_law) {
                     "force expression for the \"expression\" law");
   }
 }
+
+namespace {
+
+// " (set by --impact-speed)" when a scene message names a key that a flag set, so the user
+// sees which input to change; empty otherwise.
+std::string FlagsBehind(const SceneFlags& flags, const std::string& message) {
+  const std::pair<bool, std::pair<const char*, const char*>> keys[] = {
+      {flags.height_m.has_value(), {"drop.height_m", "--height"}},
+      {flags.impact_speed_m_s.has_value(), {"drop.impact_speed_m_s", "--impact-speed"}},
+      {flags.g_m_s2.has_value(), {"environment.g_m_s2", "--g"}},
+      {flags.diameter_m.has_value(), {"ball.diameter_m", "--diameter"}},
+      {flags.mass_kg.has_value(), {"ball.mass_kg", "--mass"}},
+      {flags.density_kg_m3.has_value(), {"ball.density_kg_m3", "--density"}}};
+  std::string out;
+  for (const auto& [given, names] : keys) {
+    if (given && message.find(names.first) != std::string::npos) {
+      out += (out.empty() ? " (set by " : ", ") + std::string(names.second);
+    }
+  }
+  return out.empty() ? out : out + ")";
+}
+
+}  // namespace
 
 Scene ResolveScene(const SceneFlags& flags) {
   Scene scene;
@@ -169,26 +195,39 @@ Scene ResolveScene(const SceneFlags& flags) {
     const LawInfo* row = FindLaw(scene.law.name);
     if (row == nullptr || !row->needs_expression) {
       throw Error(ErrorCode::kBadParameter, "--expression: only with --law " + ExpressionLawName() +
-                                                " (got --law " + scene.law.name + ")");
+                                                " (got --law " + Abbreviate(scene.law.name) + ")");
     }
     scene.law.expression = flags.expression;
   }
   for (const std::string& set : flags.law_sets) {
     const size_t eq = set.find('=');
     if (eq == std::string::npos) {
-      throw Error(ErrorCode::kBadParameter, "--set " + set + ": expected NAME=VALUE");
+      throw Error(ErrorCode::kBadParameter, "--set " + Abbreviate(set) + ": expected NAME=VALUE");
     }
     const std::string name = Trim(set.substr(0, eq));
     const std::string text = Trim(set.substr(eq + 1));
-    if (name.empty()) throw Error(ErrorCode::kBadParameter, "--set " + set + ": empty NAME");
+    if (name.empty())
+      throw Error(ErrorCode::kBadParameter, "--set " + Abbreviate(set) + ": empty NAME");
     char* end = nullptr;
     errno = 0;
     const double value = text.empty() ? 0.0 : std::strtod(text.c_str(), &end);
-    if (text.empty() || end == nullptr || *end != '\0' || errno == ERANGE ||
-        !std::isfinite(value)) {
-      throw Error(ErrorCode::kBadParameter,
-                  "--set " + set + ": value of " + name + " is not a finite number");
+    const std::string what = "--set " + Abbreviate(set) + ": value of " + Abbreviate(name);
+    if (text.empty() || end == nullptr || *end != '\0') {
+      throw Error(ErrorCode::kBadParameter, what + " is not a number");
     }
+    if (errno == ERANGE && std::abs(value) <= std::numeric_limits<double>::min()) {
+      // strtod flags underflow for magnitudes below the smallest normal double.
+      throw Error(ErrorCode::kBadParameter,
+                  what + " is too small: below " + Num(std::numeric_limits<double>::min()) +
+                      " (the smallest normal double) it cannot be computed with; give 0 or a "
+                      "larger value");
+    }
+    if (errno == ERANGE) {
+      throw Error(ErrorCode::kBadParameter, what + " is too large: above " +
+                                                Num(std::numeric_limits<double>::max()) +
+                                                " (the largest double)");
+    }
+    if (!std::isfinite(value)) throw Error(ErrorCode::kBadParameter, what + " is not finite");
     scene.law.parameters[name] = value;
   }
 
@@ -196,6 +235,7 @@ Scene ResolveScene(const SceneFlags& flags) {
   if (!scene.IsValid(&error)) {
     throw Error(ErrorCode::kBadScene,
                 (flags.scene_file.empty() ? std::string("scene from flags: ") : "") + error +
+                    FlagsBehind(flags, error) +
                     (flags.scene_file.empty() ? "" : " (after command-line overrides)"));
   }
   return scene;

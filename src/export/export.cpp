@@ -13,6 +13,7 @@
 
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
@@ -592,7 +593,7 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
                   fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
                   fs::perm_options::add);
   WriteFileAtomically((fs::path(out_dir) / "mapping.json").string(),
-                      ExportResultJson(r).dump(2) + "\n", wo);
+                      DumpJson(ExportResultJson(r), 2) + "\n", wo);
   return r;
 }
 

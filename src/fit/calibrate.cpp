@@ -265,10 +265,14 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
       keep(job.options.free_parameters);
       keep(job.options.fixed_parameters);
       job.row.fit = Calibrate(recordings, job.scene, job.options);
-    } catch (const Error& e) {
+    } catch (const std::exception& e) {
+      // Any exception (not only Error) fails this law's row: none may escape a worker thread.
       job.row.fit.outcome = FitOutcome::kFailed;
       job.row.fit.reason = e.what();
       job.row.fit.message = e.what();
+    } catch (...) {
+      job.row.fit.outcome = FitOutcome::kFailed;
+      job.row.fit.reason = job.row.fit.message = "internal error: unknown exception";
     }
     job.row.adequate = job.row.fit.outcome == FitOutcome::kConverged;
   };

@@ -5,12 +5,14 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
+#include "bouncecal/io/param_resolved.hpp"
 
 namespace bouncecal {
 using nlohmann::json;
 
 void WriteParamFile(const std::string& path, const json& doc, const WriteOptions& options) {
-  WriteFileAtomically(path, doc.dump(2) + "\n", options);
+  WriteFileAtomically(path, DumpJson(doc, 2) + "\n", options);
 }
 
 ParamFile ReadParamFile(const std::string& path) {

@@ -7,6 +7,7 @@
 #include <cstdlib>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 
@@ -134,7 +135,7 @@ Scene SceneOfFile(const ParamFile& file, const std::string& path) {
   if (!doc.contains("scene_toml") || !doc["scene_toml"].is_string()) {
     throw Error(ErrorCode::kBadParameter,
                 path + ": scene_toml: expected the fit's scene as TOML text (got " +
-                    (doc.contains("scene_toml") ? doc["scene_toml"].dump() : "nothing") +
+                    (doc.contains("scene_toml") ? DumpJson(doc["scene_toml"]) : "nothing") +
                     "); this file cannot be replayed");
   }
   try {

@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
 
@@ -144,11 +145,20 @@ double LinearDescentYForLaunch(double x) {
   return x < 1e-8 ? x - x * x / 6.0 : LinearDescentY(Psi(x));
 }
 
-void CheckFinite(double value, const char* what, const char* function) {
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// A flight input must be finite and >= 0. The message names the quantity and where it comes
+// from (the scene's drop, or a rebound), not this class's functions: users never call them.
+void CheckFinite(double value, const char* what, const char* unit) {
   if (!std::isfinite(value) || value < 0.0) {
-    throw Error(ErrorCode::kBadParameter, std::string("FlightModel::") + function + ": " + what +
-                                              " must be finite and >= 0 (got " +
-                                              std::to_string(value) + ")");
+    throw Error(ErrorCode::kBadParameter,
+                std::string("ball flight: ") + what + " = " + Num(value) + " " + unit +
+                    " must be a finite number >= 0 (check the drop height or impact speed, "
+                    "environment.g_m_s2 and the contact law's parameters)");
   }
 }
 
@@ -223,7 +233,7 @@ double FlightModel::terminal_speed_m_s() const {
 }
 
 double FlightModel::RiseTime(double v0_m_s) const {
-  CheckFinite(v0_m_s, "v0", "RiseTime");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
   switch (drag_) {
     case DragModel::kNone:
       return v0_m_s / g_;
@@ -236,7 +246,7 @@ double FlightModel::RiseTime(double v0_m_s) const {
 }
 
 double FlightModel::ApexHeight(double v0_m_s) const {
-  CheckFinite(v0_m_s, "v0", "ApexHeight");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
   switch (drag_) {
     case DragModel::kNone:
       return v0_m_s * v0_m_s / (2.0 * g_);
@@ -257,7 +267,7 @@ double FlightModel::ApexHeight(double v0_m_s) const {
 }
 
 double FlightModel::FlightTime(double v0_m_s) const {
-  CheckFinite(v0_m_s, "v0", "FlightTime");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
   switch (drag_) {
     case DragModel::kNone:
       return 2.0 * v0_m_s / g_;
@@ -275,7 +285,7 @@ double FlightModel::FlightTime(double v0_m_s) const {
 }
 
 double FlightModel::ArrivalSpeed(double v0_m_s) const {
-  CheckFinite(v0_m_s, "v0", "ArrivalSpeed");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
   switch (drag_) {
     case DragModel::kNone:
       return v0_m_s;
@@ -295,7 +305,7 @@ double FlightModel::ArrivalSpeed(double v0_m_s) const {
 }
 
 double FlightModel::FlightTimeDerivative(double v0_m_s) const {
-  CheckFinite(v0_m_s, "v0", "FlightTimeDerivative");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
   switch (drag_) {
     case DragModel::kNone:
       return 2.0 / g_;
@@ -320,7 +330,7 @@ double FlightModel::FlightTimeDerivative(double v0_m_s) const {
 }
 
 double FlightModel::ArrivalSpeedDerivative(double v0_m_s) const {
-  CheckFinite(v0_m_s, "v0", "ArrivalSpeedDerivative");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
   switch (drag_) {
     case DragModel::kNone:
       return 1.0;
@@ -342,7 +352,7 @@ double FlightModel::ArrivalSpeedDerivative(double v0_m_s) const {
 }
 
 double FlightModel::LaunchSpeedForFlightTime(double flight_time_s) const {
-  CheckFinite(flight_time_s, "flight time", "LaunchSpeedForFlightTime");
+  CheckFinite(flight_time_s, "the flight time", "s");
   if (flight_time_s == 0.0) return 0.0;
   switch (drag_) {
     case DragModel::kNone:
@@ -382,7 +392,7 @@ double FlightModel::LaunchSpeedForFlightTime(double flight_time_s) const {
 }
 
 double FlightModel::FallTime(double height_m) const {
-  CheckFinite(height_m, "height", "FallTime");
+  CheckFinite(height_m, "the drop height", "m");
   switch (drag_) {
     case DragModel::kNone:
       return std::sqrt(2.0 * height_m / g_);
@@ -407,7 +417,7 @@ double FlightModel::FallTime(double height_m) const {
 }
 
 double FlightModel::FallArrivalSpeed(double height_m) const {
-  CheckFinite(height_m, "height", "FallArrivalSpeed");
+  CheckFinite(height_m, "the drop height", "m");
   switch (drag_) {
     case DragModel::kNone:
       return std::sqrt(2.0 * g_ * height_m);
@@ -428,8 +438,8 @@ double FlightModel::FallArrivalSpeed(double height_m) const {
 }
 
 void FlightModel::State(double v0_m_s, double t_s, double* height_m, double* velocity_m_s) const {
-  CheckFinite(v0_m_s, "v0", "State");
-  CheckFinite(t_s, "t", "State");
+  CheckFinite(v0_m_s, "the launch speed", "m/s");
+  CheckFinite(t_s, "the time since launch", "s");
   double z = 0.0;
   double v = 0.0;
   switch (drag_) {

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "physics/laws/law_base.hpp"
 
 namespace bouncecal {
@@ -194,8 +195,8 @@ std::unique_ptr<ContactLaw> CreateLaw(const LawSpec& spec, const Scene& scene) {
     }
   }
   if (row == nullptr) {
-    throw Error(ErrorCode::kBadParameter,
-                "unknown contact law '" + spec.name + "' (known: " + KnownNames() + ")");
+    throw Error(ErrorCode::kBadParameter, "unknown contact law '" + Abbreviate(spec.name) +
+                                              "' (known: " + KnownNames() + ")");
   }
   const ContactBody body = BodyFromScene(scene);
   std::unique_ptr<laws::LawBase> law = row->make(spec, scene);
@@ -209,8 +210,8 @@ std::unique_ptr<ContactLaw> CreateLaw(const LawSpec& spec, const Scene& scene) {
       std::string names;
       for (const ParameterSpec& s : specs) names += (names.empty() ? "" : ", ") + s.name;
       throw Error(ErrorCode::kBadParameter,
-                  "law " + spec.name + ": unknown parameter '" + key + "' = " + Num(value) +
-                      " (parameters: " + (names.empty() ? "none" : names) + ")");
+                  "law " + spec.name + ": unknown parameter '" + Abbreviate(key) + "' = " +
+                      Num(value) + " (parameters: " + (names.empty() ? "none" : names) + ")");
     }
     if (!std::isfinite(value)) {
       throw Error(ErrorCode::kBadParameter, "law " + spec.name + ": parameter " + key + " = " +

@@ -49,7 +49,7 @@
 //
 //   [limits]
 //   horizon_s = 60.0           # > 0
-//   max_impacts = 10000        # integer >= 1
+//   max_impacts = 10000        # integer in [1, 1000000] (kMaxImpactsLimit)
 //   rest_speed_m_s = 1e-4      # >= 0
 //
 // Material presets (density kg/m^3, E Pa, nu): see MaterialPresets() below and `bouncecal laws`.
@@ -68,6 +68,7 @@
 #include <toml++/toml.h>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 
 namespace bouncecal {
@@ -288,6 +289,30 @@ bool Scene::IsValid(std::string* error) const {
 
 namespace {
 
+// Values that pass their own checks can still overflow what is computed from them: the arrival
+// speed sqrt(2 g h) (no drag: the fastest case), the kinetic energy m v^2 / 2 and the flight
+// time 2 v / g (simulator.hpp, flight.hpp). Each must be finite, or every later stage would
+// report "inf" or "nan" as a result. The message names the scene key that was given.
+void CheckDropDoesNotOverflow(const Scene& s, Checker* checker) {
+  const double g = s.environment.g_m_s2;
+  const double two_g_h = s.drop.height_m ? 2.0 * g * *s.drop.height_m : 0.0;
+  const double v = s.drop.impact_speed_m_s ? *s.drop.impact_speed_m_s : std::sqrt(two_g_h);
+  const double mass_kg = s.ball.Mass();
+  const std::string key = s.drop.impact_speed_m_s ? "drop.impact_speed_m_s" : "drop.height_m";
+  const std::string given =
+      s.drop.impact_speed_m_s
+          ? Num(v) + " m/s"
+          : Num(*s.drop.height_m) + " m with environment.g_m_s2 = " + Num(g) + " m/s^2";
+  if (!std::isfinite(two_g_h)) {
+    checker->Fail(key, given + ": the arrival speed sqrt(2 g h) is not a finite number");
+  } else if (!std::isfinite(0.5 * mass_kg * v * v)) {
+    checker->Fail(key, given + ": the kinetic energy m v^2 / 2 = " + Num(0.5 * mass_kg * v * v) +
+                           " J is not a finite number (ball mass " + Num(mass_kg) + " kg)");
+  } else if (!std::isfinite(2.0 * v / g)) {
+    checker->Fail(key, given + ": the flight time 2 v / g is not a finite number");
+  }
+}
+
 void Validate(const Scene& s, Checker* checker) {
   Checker& c = *checker;
   const Ball& ball = s.ball;
@@ -351,6 +376,7 @@ void Validate(const Scene& s, Checker* checker) {
     }
   }
   c.Finite("drop.first_impact_time_s", drop.first_impact_time_s);
+  if (c.ok()) CheckDropDoesNotOverflow(s, &c);
   // Effects.
   if (effects.surface_compliance && surface.kind != Surface::Kind::kSpringMass) {
     c.Fail("effects.surface_compliance",
@@ -371,16 +397,19 @@ void Validate(const Scene& s, Checker* checker) {
     c.Finite("law.parameters." + name, value);
   }
   if (NeedsExpression(law.name) && law.expression.empty()) {
-    c.Fail("law.expression", "missing: law \"" + law.name + "\" needs a force expression");
+    c.Fail("law.expression",
+           "missing: law \"" + Abbreviate(law.name) + "\" needs a force expression");
   }
   if (!NeedsExpression(law.name) && !law.expression.empty()) {
     c.Fail("law.expression", "only allowed with law.name = \"" + ExpressionLawName() +
-                                 "\" (got name \"" + law.name + "\")");
+                                 "\" (got name \"" + Abbreviate(law.name) + "\")");
   }
   // Limits.
   c.Positive("limits.horizon_s", limits.horizon_s);
-  if (limits.max_impacts < 1) {
-    c.Fail("limits.max_impacts", "must be >= 1 (got " + std::to_string(limits.max_impacts) + ")");
+  if (limits.max_impacts < 1 || limits.max_impacts > kMaxImpactsLimit) {
+    c.Fail("limits.max_impacts", "must be in [1, " + std::to_string(kMaxImpactsLimit) + "] (got " +
+                                     std::to_string(limits.max_impacts) +
+                                     "; the limit keeps the output under ~300 MB of JSON)");
   }
   c.NonNegative("limits.rest_speed_m_s", limits.rest_speed_m_s);
 }
@@ -694,7 +723,7 @@ class SceneReader {
     }
     if (NeedsExpression(s->law.name) && s->law.expression.empty()) {
       Fail(t.source(), "law.expression",
-           "missing: law \"" + s->law.name + "\" needs a force expression");
+           "missing: law \"" + Abbreviate(s->law.name) + "\" needs a force expression");
     }
   }
 
@@ -707,7 +736,11 @@ class SceneReader {
       } else if (key == "max_impacts") {
         auto i = node.value_exact<int64_t>();
         if (!i) Fail(node, full, "expected an integer");
-        if (*i < 1 || *i > 100000000) Fail(node, full, "must be in [1, 1e8]");
+        if (*i < 1 || *i > kMaxImpactsLimit) {
+          Fail(node, full,
+               "must be in [1, " + std::to_string(kMaxImpactsLimit) +
+                   "] (the limit keeps the output under ~300 MB of JSON)");
+        }
         s->limits.max_impacts = static_cast<int>(*i);
       } else if (key == "rest_speed_m_s") {
         s->limits.rest_speed_m_s = NonNegative(node, full);

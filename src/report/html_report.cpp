@@ -3,6 +3,7 @@
 
 #include <string_view>
 
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/provenance.hpp"
 #include "report/report_assets.hpp"
 
@@ -36,7 +37,7 @@ std::string HtmlEscape(const std::string& s) {
 // JSON text safe inside <script>: '<' only occurs inside JSON strings, where \u003c means the
 // same character, so "</script>" in a value cannot close the element.
 std::string ScriptSafeJson(const nlohmann::json& j) {
-  const std::string text = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  const std::string text = DumpJson(j);
   std::string out;
   out.reserve(text.size() + 64);
   for (char c : text) {

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/flight.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
@@ -1012,7 +1013,7 @@ SynthSpec SynthPreset(const std::string& name) {
   std::string known;
   for (const auto& n : SynthPresetNames()) known += (known.empty() ? "" : ", ") + n;
   throw Error(ErrorCode::kBadParameter,
-              "synth preset '" + name + "': unknown (known: " + known + ")");
+              "synth preset '" + Abbreviate(name) + "': unknown (known: " + known + ")");
 }
 
 const char* TruthSourceName(TruthSource s) {

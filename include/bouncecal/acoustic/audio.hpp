@@ -11,7 +11,8 @@
 //   std::vector<float> x = SelectChannel(a, ParseChannelSelection("auto"));
 //
 // Errors (Error codes in error.hpp): kInputMissing (missing, directory, unreadable),
-// kNotAudio (not audio, unsupported, truncated, zero frames), kBadSamples (NaN/Inf).
+// kNotAudio (not audio, unsupported, truncated, zero frames), kBadSamples (NaN/Inf, or a
+// sample beyond 1e6 times full scale).
 #pragma once
 
 #include <cstdint>

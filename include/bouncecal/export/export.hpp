@@ -21,7 +21,7 @@
 //
 //   ExportOptions o; o.target = ExportTarget::kLammps;
 //   ExportResult r = ExportDeck("params.json", "out/", o);
-//   std::cout << ExportResultJson(r).dump(2);
+//   std::cout << DumpJson(ExportResultJson(r), 2);
 #pragma once
 
 #include <string>

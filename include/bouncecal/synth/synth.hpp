@@ -15,7 +15,7 @@
 //   spec.render.seed = 7;
 //   SynthResult r = Synthesize(spec);                      // truth + audio
 //   WriteAudio("x.wav", r.recording.channels, r.recording.sample_rate_hz);
-//   WriteFileAtomically("x.truth.json", TruthJson(spec, r).dump(2));
+//   WriteFileAtomically("x.truth.json", DumpJson(TruthJson(spec, r), 2));
 //
 // Time convention (the one thing to get right when comparing with a detector):
 //   TruthImpact::time_s is the instant of first touch on the scene's clock, which is the file's

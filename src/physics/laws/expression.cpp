@@ -18,6 +18,7 @@
 #include <limits>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/pointwise_law.hpp"
 #include "physics/laws/law_impl.hpp"
@@ -71,7 +72,7 @@ class Expression final : public LawBase {
       parser_.Eval();  // forces the parse: syntax errors and unknown names surface here
     } catch (const mu::Parser::exception_type& e) {
       throw Error(ErrorCode::kBadParameter,
-                  "law expression: cannot use \"" + expression_ + "\": " + e.GetMsg() +
+                  "law expression: cannot use \"" + Abbreviate(expression_) + "\": " + e.GetMsg() +
                       (e.GetPos() >= 0 ? " (at position " + std::to_string(e.GetPos()) + ")"
                                        : std::string()));
     }

@@ -11,10 +11,18 @@ import subprocess
 import pytest
 
 SOURCE_DIR = pathlib.Path(os.environ.get("BOUNCECAL_SOURCE_DIR",
-                                         pathlib.Path(__file__).resolve().parents[2]))
-BINARY = pathlib.Path(os.environ.get("BOUNCECAL_BINARY", SOURCE_DIR / "build" / "bouncecal"))
+                                         pathlib.Path(__file__).resolve().parents[2])).resolve()
+BINARY = pathlib.Path(os.environ.get("BOUNCECAL_BINARY",
+                                     SOURCE_DIR / "build" / "bouncecal")).resolve()
 RECORDING = SOURCE_DIR / "data" / "default_steel_copper.flac"
 SCENE = SOURCE_DIR / "data" / "default_steel_copper.toml"
+
+
+@pytest.fixture(autouse=True)
+def scratch_cwd(tmp_path, monkeypatch):
+    """Every test runs in its own scratch directory: nothing lands in the source tree (the
+    exporter asks the simulators for their version, and LIGGGHTS writes log.liggghts)."""
+    monkeypatch.chdir(tmp_path)
 
 
 def run_cli(*args, expect=0):

@@ -5,6 +5,7 @@ import shutil
 import subprocess
 import sys
 
+import bouncecal
 from conftest import BINARY, RECORDING, SCENE, SOURCE_DIR
 
 
@@ -14,7 +15,8 @@ def test_batch_folder_writes_one_row_per_recording_and_the_report(tmp_path):
     shutil.copy(RECORDING, folder / "a_steel.flac")
     (folder / "b_broken.wav").write_text("not audio\n")
     out, report = tmp_path / "results.csv", tmp_path / "report.html"
-    env = dict(os.environ, BOUNCECAL_BINARY=str(BINARY))
+    package_dir = os.path.dirname(os.path.dirname(os.path.abspath(bouncecal.__file__)))
+    env = dict(os.environ, BOUNCECAL_BINARY=str(BINARY), PYTHONPATH=package_dir)
     p = subprocess.run([sys.executable, str(SOURCE_DIR / "tools" / "batch_folder.py"),
                         str(folder), "--scene", str(SCENE), "-o", str(out), "--report",
                         str(report)], capture_output=True, text=True, env=env)

@@ -14,6 +14,7 @@
 #include <pybind11/stl.h>
 
 #include "bindings.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/atomic_file.hpp"
@@ -288,7 +289,7 @@ nlohmann::json CalibrateBatch(const CalibrateRun& r,
   }
   if (!r.output.empty()) {
     std::string lines;
-    for (const nlohmann::json& row : rows) lines += row.dump() + "\n";
+    for (const nlohmann::json& row : rows) lines += DumpJson(row) + "\n";
     WriteFileAtomically(r.output, lines, {.force = r.force, .inputs = r.files});
   }
   if (failed > 0) {

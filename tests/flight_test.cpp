@@ -118,8 +118,8 @@ TEST(FlightTest, VacuumOracles) {
 }
 
 TEST(FlightTest, QuadraticDragClosedFormsFromPhysicsMd) {
-  // docs/physics.md §2, written literally: t_up = (v_t/g) atan(v0/v_t), H = (v_t^2/2g) ln(1+v0^2/v_t^2),
-  // t_down = (v_t/g) acosh(exp(gH/v_t^2)), v_in = v_t sqrt(1 - exp(-2gH/v_t^2)).
+  // docs/physics.md §2, written literally: t_up = (v_t/g) atan(v0/v_t), H = (v_t^2/2g)
+  // ln(1+v0^2/v_t^2), t_down = (v_t/g) acosh(exp(gH/v_t^2)), v_in = v_t sqrt(1 - exp(-2gH/v_t^2)).
   const double vt = 9.0;
   const FlightModel f = FlightModel::Quadratic(kG, vt);
   for (double v0 : {0.3, 2.0, 8.0, 30.0}) {

@@ -3,8 +3,8 @@
 // Each contact is integrated by the independent Boost.Odeint law oracle (law_oracle.hpp, gravity
 // on during the contact, as for a real ball); the flights between contacts use the exact flight
 // formulas (flight.hpp, tested against an independent RK4 in flight_test). Optional per-bounce
-// restitution scatter (docs/physics.md §6) and Gaussian timing noise on the onsets. So a calibration
-// round trip on these sequences cannot hide a simulator bug behind the same simulator.
+// restitution scatter (docs/physics.md §6) and Gaussian timing noise on the onsets. So a
+// calibration round trip on these sequences cannot hide a simulator bug behind the same simulator.
 #pragma once
 
 #include <cmath>

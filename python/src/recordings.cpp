@@ -14,10 +14,10 @@
 #include <pybind11/stl.h>
 
 #include "bindings.hpp"
-#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/atomic_file.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/calibrate.hpp"
 #include "bouncecal/fit/kinematics.hpp"
 #include "bouncecal/fit/scene_checks.hpp"

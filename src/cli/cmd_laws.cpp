@@ -14,8 +14,8 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
-#include "bouncecal/io/schema.hpp"
 #include "bouncecal/core/user_text.hpp"
+#include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "commands.hpp"
 

@@ -27,9 +27,9 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
-#include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "commands.hpp"
 #include "output.hpp"
@@ -150,20 +150,20 @@ nlohmann::json SimulatedLawJson(const SynthSpec& spec) {
   return LawJson(*law, law->ParameterValues(), spec.scene.law.expression);
 }
 
-void Run(const SynthFlags& f) {
-  if (f.list_presets) {
-    for (const std::string& n : SynthPresetNames()) {
-      const SynthSpec s = SynthPreset(n);
-      std::printf("%-14s %6.0f Hz  %zu ch  ball %s d=%g m on %s, drop %g m, %zu drop(s)\n",
-                  n.c_str(), s.render.sample_rate_hz, s.render.channels.size(),
-                  s.scene.ball.material.c_str(), s.scene.ball.diameter_m,
-                  s.scene.surface.material.c_str(), s.scene.drop.height_m.value_or(0.0),
-                  s.drops.size());
-    }
-    return;
+// --list-presets: one line per preset.
+void ListPresets() {
+  for (const std::string& n : SynthPresetNames()) {
+    const SynthSpec s = SynthPreset(n);
+    std::printf("%-14s %6.0f Hz  %zu ch  ball %s d=%g m on %s, drop %g m, %zu drop(s)\n", n.c_str(),
+                s.render.sample_rate_hz, s.render.channels.size(), s.scene.ball.material.c_str(),
+                s.scene.ball.diameter_m, s.scene.surface.material.c_str(),
+                s.scene.drop.height_m.value_or(0.0), s.drops.size());
   }
-  if (f.output.empty()) throw Error(ErrorCode::kUsage, "synth: give the output file with -o FILE");
+}
 
+// The preset with the scene flags applied and the truth source chosen (law or restitution
+// model), refusing restitution-model flags when the law gives the truth.
+SynthSpec SpecFromPresetAndScene(const SynthFlags& f) {
   SynthSpec spec = SynthPreset(f.preset);
   spec.scene = PresetSceneWithFlags(spec, f.scene);
   if (!f.scene.scene_file.empty() || AnySceneFlag(f.scene)) spec.name += "+scene";
@@ -184,7 +184,13 @@ void Run(const SynthFlags& f) {
     spec.name += "+law:" + spec.scene.law.name;
   }
 
-  RenderOptions& r = spec.render;
+  return spec;
+}
+
+// The renderer's options from the flags (rate, seed, noise, channels, plate, hum, distractors,
+// clipping, latency, length).
+void ApplyRenderFlags(const SynthFlags& f, RenderOptions* out) {
+  RenderOptions& r = *out;
   if (f.rate_hz) r.sample_rate_hz = *f.rate_hz;
   if (f.seed) r.seed = *f.seed;
   if (f.snr_db) r.snr_db = *f.snr_db;
@@ -210,6 +216,20 @@ void Run(const SynthFlags& f) {
     }
   }
   if (!f.plate.empty()) r.plate_modes = PlateModes(f.plate);
+  if (f.hum_hz) r.hum_hz = *f.hum_hz;
+  if (f.hum_db) r.hum_db = *f.hum_db;
+  if (f.distractors) r.distractors = *f.distractors;
+  if (f.distractor_db) r.distractor_db = *f.distractor_db;
+  if (f.clip_level) r.clip_level = *f.clip_level;
+  if (f.latency_ms) r.latency_s = *f.latency_ms * 1e-3;
+  if (f.tail_s) r.tail_s = *f.tail_s;
+  if (f.duration_s) r.duration_s = *f.duration_s;
+}
+
+// The restitution model and truth settings from the flags.
+void ApplyTruthFlags(const SynthFlags& f, SynthSpec* out) {
+  SynthSpec& spec = *out;
+  const RenderOptions& r = spec.render;
   if (f.restitution && (f.e0 || f.e_slope || f.e_power)) {
     throw Error(ErrorCode::kBadParameter, "--restitution and --e0/--e-slope/--e-power: give one");
   }
@@ -227,18 +247,15 @@ void Run(const SynthFlags& f) {
     spec.truth.scatter_e = *f.scatter_e;
     spec.truth.scatter_seed = r.seed;  // the bounces change with --seed, like the noise
   }
-  if (f.hum_hz) r.hum_hz = *f.hum_hz;
-  if (f.hum_db) r.hum_db = *f.hum_db;
-  if (f.distractors) r.distractors = *f.distractors;
-  if (f.distractor_db) r.distractor_db = *f.distractor_db;
-  if (f.clip_level) r.clip_level = *f.clip_level;
-  if (f.latency_ms) r.latency_s = *f.latency_ms * 1e-3;
-  if (f.tail_s) r.tail_s = *f.tail_s;
-  if (f.duration_s) r.duration_s = *f.duration_s;
   if (f.first_impact_s) {
     const double shift = *f.first_impact_s - spec.drops.at(0).first_impact_s;
     for (SynthDrop& d : spec.drops) d.first_impact_s += shift;
   }
+}
+
+// --drops N: each drop starts drop_gap_s after the previous one's last impact.
+void ApplyDrops(const SynthFlags& f, SynthSpec* out) {
+  SynthSpec& spec = *out;
   if (f.drops) {
     if (*f.drops < 1 || *f.drops > 100) {
       throw Error(ErrorCode::kBadParameter,
@@ -256,9 +273,10 @@ void Run(const SynthFlags& f) {
                                      one.drops[0].height_m});
     }
   }
-  std::string err;
-  if (!spec.IsValid(&err)) throw Error(ErrorCode::kBadParameter, "synth: " + err);
+}
 
+// Renders, writes the audio and its truth file (both or neither), and prints the summary.
+void WriteAndReport(const SynthFlags& f, const SynthSpec& spec) {
   const std::string truth_path = TruthPath(f.output);
   const WriteOptions wo{.force = f.force, .inputs = {f.scene.scene_file}};
   CheckOutputPath(f.output, wo);
@@ -318,6 +336,19 @@ void Run(const SynthFlags& f) {
     }
     std::printf("wrote %s (ground truth)\n", truth_path.c_str());
   }
+}
+
+void Run(const SynthFlags& f) {
+  if (f.list_presets) return ListPresets();
+  if (f.output.empty()) throw Error(ErrorCode::kUsage, "synth: give the output file with -o FILE");
+  SynthSpec spec = SpecFromPresetAndScene(f);
+  ApplyRenderFlags(f, &spec.render);
+  ApplyTruthFlags(f, &spec);
+  ApplyDrops(f, &spec);
+  std::string err;
+  if (!spec.IsValid(&err)) throw Error(ErrorCode::kBadParameter, "synth: " + err);
+
+  WriteAndReport(f, spec);
 }
 
 }  // namespace

@@ -2,9 +2,9 @@
 // (bounce_screen.hpp).
 #include "bouncecal/fit/bounce_screen.hpp"
 
-#include <cstdarg>
 #include <algorithm>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <string>
 

@@ -21,13 +21,13 @@
 // on the impact speed (tau ~ v^-1/5) is left out of the Jacobian.
 #include "bouncecal/fit/kinematics.hpp"
 
-#include <cstdarg>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <limits>
 #include <map>
-#include <set>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "bouncecal/core/error.hpp"

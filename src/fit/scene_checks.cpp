@@ -1,8 +1,8 @@
 // Scene values in a probably wrong unit (scene_checks.hpp).
 #include "bouncecal/fit/scene_checks.hpp"
 
-#include <cstdarg>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <string>
 

@@ -4,10 +4,10 @@
 // Residuals per recording: r_j = t0 + s_j(theta, v0) - t_j (model - measured, s), covariance
 //   C = diag(sigma_t^2) + sigma_s^2 G G^T,   G_jk = d s_j / d eps_k
 // where eps_k perturbs bounce k's restitution: v_out,k = (e(u_k) + eps_k) u_k, and the change
-// runs through every later flight (docs/physics.md §2 flight formulas, the law's e'(u) at each later
-// impact). sigma_s comes from the restitution fit. G is computed at the start and again at the
-// optimum (one refit). A stated drop with sigma ties v0 through a prior residual
-// (v0 - v_drop) / sigma_v; an exact one holds v0.
+// runs through every later flight (docs/physics.md §2 flight formulas, the law's e'(u) at each
+// later impact). sigma_s comes from the restitution fit. G is computed at the start and again at
+// the optimum (one refit). A stated drop with sigma ties v0 through a prior residual (v0 - v_drop)
+// / sigma_v; an exact one holds v0.
 #include <algorithm>
 #include <cmath>
 #include <set>

@@ -2,9 +2,9 @@
 #include "bouncecal/io/param_resolved.hpp"
 
 #include <cmath>
-#include <optional>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/user_text.hpp"

@@ -10,7 +10,8 @@
 // reduces smoothly to the vacuum result as v_t -> infinity (atan/asinh/log1p/expm1 forms and
 // short series where a difference of nearly equal terms would cancel).
 //
-// Quadratic drag, x = v0 / v_t (e.g. Timoshenko & Young, "Advanced Dynamics", §2; docs/physics.md §2):
+// Quadratic drag, x = v0 / v_t (e.g. Timoshenko & Young, "Advanced Dynamics", §2; docs/physics.md
+// §2):
 //   t_up   = (v_t/g) atan(x)                 apex H = (v_t^2 / 2g) ln(1 + x^2)
 //   t_down = (v_t/g) acosh(exp(gH/v_t^2)) = (v_t/g) asinh(x)      (since exp(gH/v_t^2) =
 //   sqrt(1+x^2)) v_in   = v_t sqrt(1 - exp(-2gH/v_t^2)) = v0 / sqrt(1 + x^2)

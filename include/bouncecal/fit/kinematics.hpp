@@ -1,12 +1,12 @@
 // bouncecal/fit/kinematics.hpp — impact times -> per-bounce speeds, restitution and energy loss.
 //
-// docs/physics.md §1-2 (seed 002 eqs. 7-12): with the flight model of the scene (no/linear/quadratic
-// drag, buoyancy) each measured interval T_k = t_{k+1} - t_k (less the contact duration of
-// impact k when the scene turns that effect on) gives the rebound speed v_out,k by inverting the
-// exact flight time, and the arrival speed at k+1 from the same flight. Then
-// e_k = v_out,k / v_in,k and eta_k = 1 - e_k^2, with uncertainties propagated from the onset
-// timing sigmas (full covariance of the three times involved) and, for the first impact, from
-// the drop height's sigma.
+// docs/physics.md §1-2 (seed 002 eqs. 7-12): with the flight model of the scene
+// (no/linear/quadratic drag, buoyancy) each measured interval T_k = t_{k+1} - t_k (less the contact
+// duration of impact k when the scene turns that effect on) gives the rebound speed v_out,k by
+// inverting the exact flight time, and the arrival speed at k+1 from the same flight. Then e_k =
+// v_out,k / v_in,k and eta_k = 1 - e_k^2, with uncertainties propagated from the onset timing
+// sigmas (full covariance of the three times involved) and, for the first impact, from the drop
+// height's sigma.
 //
 // Then the bounces are screened against a smooth e(v) curve with the per-bounce scatter model
 // (bounce_screen.hpp): the ball's scatter sigma_s from bounce to bounce (scatter_e), bounces

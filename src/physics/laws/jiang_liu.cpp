@@ -14,8 +14,8 @@
 // w_r equation is not Lipschitz at w_r = 0 (w_r = 0 is a spurious elastic solution). The state
 // integrated here is s = w_r^(3/4):
 //   ds/dt = (3/4) (a Theta delta'^2 - s / tau),  w_r = s^(4/3),  eta^relax = a s^(1/3) Theta,
-// which is Lipschitz and leaves s = 0 on the dissipative branch without a seed (docs/physics.md §4).
-// tau is tiny (~ t_c/250 for the 1 cm steel ball): the relaxation is stiff. How the integrator
+// which is Lipschitz and leaves s = 0 on the dissipative branch without a seed (docs/physics.md
+// §4). tau is tiny (~ t_c/250 for the 1 cm steel ball): the relaxation is stiff. How the integrator
 // copes (contact_integrator.hpp), measured with bench_simulate:
 //  - the constants of eqs. 37 and 39 (five pow calls) are prepared once per simulation
 //    (Prepare), not at every force evaluation (they were 37 % of this law's time);

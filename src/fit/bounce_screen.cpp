@@ -4,27 +4,19 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <string>
 
 #include "bouncecal/fit/scatter_model.hpp"
 #include "bouncecal/physics/flight.hpp"
+#include "fit/text.hpp"
 
 namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// printf into a std::string; the format attribute lets the compiler check every call.
-__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
-  char buf[256];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
-}
+using fit_text::Printf;
 
 // A smooth e(u) = sum_j beta_j f_j(u) over a choice of the terms {1, x, u/u_ref, x^2},
 // x = ln(u/u_ref): ln u carries the viscoelastic e ~ 1 - c u^(1/5) family, u the
@@ -168,8 +160,8 @@ void CheckDropHeight(const Scene& scene, const AnalysisOptions& options, const A
   out->drop_consistent = false;
   const double h_fit = HeightForArrivalSpeed(scene, u);
   if (std::isfinite(h_fit)) out->drop_height_fit_m = h_fit;
-  std::string stated = scene.drop.height_m ? Fmt("height %.4g m", *scene.drop.height_m)
-                                           : Fmt("impact speed %.4g m/s", u0);
+  std::string stated = scene.drop.height_m ? Printf("height %.4g m", *scene.drop.height_m)
+                                           : Printf("impact speed %.4g m/s", u0);
   std::string cause;
   const double q =
       scene.drop.height_m && std::isfinite(h_fit) ? *scene.drop.height_m / h_fit : kNaN;
@@ -188,11 +180,12 @@ void CheckDropHeight(const Scene& scene, const AnalysisOptions& options, const A
   }
   out->warnings.push_back(
       {"drop_height_inconsistent",
-       "impact 0: e = " + Fmt("%.4f", b0.e) + " from the stated " + stated +
-           Fmt(" (%.3g m/s)", u0) + ", but the next bounces' trend (e = " + Fmt("%.3f", pred) +
-           Fmt(") agrees with an arrival at %.3g +- %.2g m/s", u, std::sqrt(var_u)) +
-           Fmt(" (%.1f sigma)", std::abs(z)) +
-           (std::isfinite(h_fit) ? Fmt(", a drop of %.3g m", h_fit) : "") + ": " + cause +
+       "impact 0: e = " + Printf("%.4f", b0.e) + " from the stated " + stated +
+           Printf(" (%.3g m/s)", u0) +
+           ", but the next bounces' trend (e = " + Printf("%.3f", pred) +
+           Printf(") agrees with an arrival at %.3g +- %.2g m/s", u, std::sqrt(var_u)) +
+           Printf(" (%.1f sigma)", std::abs(z)) +
+           (std::isfinite(h_fit) ? Printf(", a drop of %.3g m", h_fit) : "") + ": " + cause +
            "; the first impact is left out of fits",
        0});
 }
@@ -233,13 +226,13 @@ void ScreenBounces(const Scene& scene, const AnalysisOptions& options, Analysis*
     b.irregular = true;
     a->warnings.push_back(
         {"irregular_bounce",
-         "impact " + std::to_string(p.bounce) + Fmt(": e = %.4f is %.1f sigma ", p.e, std::abs(z)) +
-             (z > 0 ? "below" : "above") +
-             Fmt(" the smooth e(v) of the other bounces (%.4f, scatter %.2g)",
-                 p.e + curve.residual[static_cast<size_t>(k)], curve.scatter.sigma) +
-             Fmt("; beyond %.1f sigma for %d bounces: a mis-tracked impact or an irregular "
-                 "bounce, left out of fits",
-                 z_max, n),
+         "impact " + std::to_string(p.bounce) +
+             Printf(": e = %.4f is %.1f sigma ", p.e, std::abs(z)) + (z > 0 ? "below" : "above") +
+             Printf(" the smooth e(v) of the other bounces (%.4f, scatter %.2g)",
+                    p.e + curve.residual[static_cast<size_t>(k)], curve.scatter.sigma) +
+             Printf("; beyond %.1f sigma for %d bounces: a mis-tracked impact or an irregular "
+                    "bounce, left out of fits",
+                    z_max, n),
          p.bounce});
   }
   if (flagged > 0 && n - flagged >= 3) {
@@ -289,14 +282,14 @@ void CheckDrag(const Sequence& sequence, const Scene& scene, const AnalysisOptio
   const double vt = FlightModel::FromScene(with_drag).terminal_speed_m_s();
   a->warnings.push_back(
       {"drag_likely_needed",
-       Fmt("the scene has no air drag, but this ball (%.3g m, %.3g kg) has a terminal speed of "
-           "%.3g m/s and arrives at up to %.3g m/s: ",
-           scene.ball.diameter_m, scene.ball.Mass(), vt, v_max) +
-           Fmt("quadratic drag changes e by up to %.2g (impact %d: %.4f -> %.4f), ", effect,
-               a->bounces[static_cast<size_t>(at)].index, a->bounces[static_cast<size_t>(at)].e,
-               d.bounces[static_cast<size_t>(at)].e) +
-           Fmt("%.0f times its timing sigma; turn it on (effects.drag = \"quadratic\")",
-               effect / median_sigma),
+       Printf("the scene has no air drag, but this ball (%.3g m, %.3g kg) has a terminal speed of "
+              "%.3g m/s and arrives at up to %.3g m/s: ",
+              scene.ball.diameter_m, scene.ball.Mass(), vt, v_max) +
+           Printf("quadratic drag changes e by up to %.2g (impact %d: %.4f -> %.4f), ", effect,
+                  a->bounces[static_cast<size_t>(at)].index, a->bounces[static_cast<size_t>(at)].e,
+                  d.bounces[static_cast<size_t>(at)].e) +
+           Printf("%.0f times its timing sigma; turn it on (effects.drag = \"quadratic\")",
+                  effect / median_sigma),
        -1});
 }
 

@@ -22,7 +22,6 @@
 #include "bouncecal/fit/kinematics.hpp"
 
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <limits>
 #include <map>
@@ -33,21 +32,14 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/fit/bounce_screen.hpp"
 #include "bouncecal/physics/flight.hpp"
+#include "fit/text.hpp"
 
 namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// printf into a std::string; the format attribute lets the compiler check every call.
-__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
-  char buf[256];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
-}
+using fit_text::Printf;
 
 }  // namespace
 
@@ -58,17 +50,17 @@ bool AnalysisOptions::IsValid(std::string* error) const {
   };
   if (!std::isfinite(contact_time_s) || contact_time_s < 0.0) {
     return fail("contact_time_s: must be finite and >= 0 (0 = Hertz estimate) (got " +
-                Fmt("%g", contact_time_s) + ")");
+                Printf("%g", contact_time_s) + ")");
   }
   if (!(irregular_alpha > 0.0 && irregular_alpha < 1.0)) {
-    return fail("irregular_alpha: must be in (0, 1) (got " + Fmt("%g", irregular_alpha) + ")");
+    return fail("irregular_alpha: must be in (0, 1) (got " + Printf("%g", irregular_alpha) + ")");
   }
   if (!(drop_z_max > 0.0) || !std::isfinite(drop_z_max)) {
-    return fail("drop_z_max: must be finite and > 0 (got " + Fmt("%g", drop_z_max) + ")");
+    return fail("drop_z_max: must be finite and > 0 (got " + Printf("%g", drop_z_max) + ")");
   }
   if (!(drag_effect_sigmas > 0.0) || !std::isfinite(drag_effect_sigmas)) {
-    return fail("drag_effect_sigmas: must be finite and > 0 (got " + Fmt("%g", drag_effect_sigmas) +
-                ")");
+    return fail("drag_effect_sigmas: must be finite and > 0 (got " +
+                Printf("%g", drag_effect_sigmas) + ")");
   }
   return true;
 }
@@ -117,7 +109,7 @@ void CheckSequence(const Sequence& sequence, const Scene& scene, const AnalysisO
     if (!std::isfinite(imp[k].time_s) || (k > 0 && !(imp[k].time_s > imp[k - 1].time_s))) {
       throw Error(ErrorCode::kBadParameter, "impact " + std::to_string(k) +
                                                 ": times must be finite and increasing (got " +
-                                                Fmt("%.9g", imp[k].time_s) + ")");
+                                                Printf("%.9g", imp[k].time_s) + ")");
     }
   }
 }
@@ -183,11 +175,11 @@ Flights FlightStage(const Sequence& sequence, const Scene& scene, const Analysis
     }
     const double flight_time = interval - f.tau[k];
     if (!(flight_time > 0.0)) {
-      out->warnings.push_back(
-          {"interval_too_short",
-           "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
-               Fmt(": %.3g s is not longer than the contact duration %.3g s", interval, f.tau[k]),
-           static_cast<int>(k)});
+      out->warnings.push_back({"interval_too_short",
+                               "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
+                                   Printf(": %.3g s is not longer than the contact duration %.3g s",
+                                          interval, f.tau[k]),
+                               static_cast<int>(k)});
       continue;
     }
     f.v_out[k] = flight.LaunchSpeedForFlightTime(flight_time);
@@ -248,7 +240,7 @@ void BounceStage(const Flights& f, Analysis* out) {
     if (bo.e > 1.0) {
       out->warnings.push_back(
           {"e_above_one",
-           "impact " + std::to_string(k) + Fmt(": e = %.5f > 1 (+- %.2g): ", bo.e, bo.e_sigma) +
+           "impact " + std::to_string(k) + Printf(": e = %.5f > 1 (+- %.2g): ", bo.e, bo.e_sigma) +
                (k == 0 ? "the drop height/impact speed is too low for the first interval, or the "
                          "first detected impact is not the drop's first"
                        : "timing noise, a wrong scene (drag) or a mis-tracked impact"),

@@ -1,8 +1,8 @@
 // Scene values in a probably wrong unit (scene_checks.hpp).
 #include "bouncecal/fit/scene_checks.hpp"
+#include "fit/text.hpp"
 
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <string>
 
@@ -15,15 +15,7 @@ constexpr double kMaxHeightM = 50.0;
 constexpr double kMinDensity = 10.0, kMaxDensity = 25000.0;
 constexpr double kMinG = 1.0, kMaxG = 30.0;
 
-// printf into a std::string; the format attribute lets the compiler check every call.
-__attribute__((format(printf, 1, 2))) std::string Fmt(const char* format, ...) {
-  char buf[256];
-  va_list args;
-  va_start(args, format);
-  std::vsnprintf(buf, sizeof buf, format, args);
-  va_end(args);
-  return buf;
-}
+using fit_text::Printf;
 
 // The units (in the given order of likelihood) that would bring v, read as metres, into
 // [lo, hi]: "centimetres (1.5 m) or millimetres (0.15 m)", or "".
@@ -32,7 +24,7 @@ std::string LengthUnits(double v, double lo, double hi, bool cm_first) {
   const std::pair<const char*, double> mm{"millimetres", 1e-3}, cm{"centimetres", 1e-2};
   for (const auto& [name, f] : cm_first ? std::vector{cm, mm} : std::vector{mm, cm}) {
     if (v * f >= lo && v * f <= hi)
-      out += (out.empty() ? "" : " or ") + std::string(name) + Fmt(" (%g m)", v * f);
+      out += (out.empty() ? "" : " or ") + std::string(name) + Printf(" (%g m)", v * f);
   }
   return out;
 }
@@ -47,7 +39,7 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
         d > kMaxDiameterM ? LengthUnits(d, kMinDiameterM, kMaxDiameterM, false) : "";
     out.push_back(
         {"units_suspect",
-         Fmt("ball.diameter_m = %g m is outside a ball's 0.1 mm .. 1 m", d) +
+         Printf("ball.diameter_m = %g m is outside a ball's 0.1 mm .. 1 m", d) +
              (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
          -1});
   }
@@ -56,7 +48,7 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
     const std::string unit = LengthUnits(h, 0.0, kMaxHeightM, true);
     out.push_back(
         {"units_suspect",
-         Fmt("drop.height_m = %g m is higher than a drop experiment (50 m)", h) +
+         Printf("drop.height_m = %g m is higher than a drop experiment (50 m)", h) +
              (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
          -1});
   }
@@ -65,22 +57,22 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
     std::string hint = ": check the ball's mass and diameter units";
     if (scene.ball.mass_kg && rho > kMaxDensity && rho * 1e-3 >= kMinDensity &&
         rho * 1e-3 <= kMaxDensity) {
-      hint = Fmt(": ball.mass_kg = %g looks like grams (%g kg)", *scene.ball.mass_kg,
-                 *scene.ball.mass_kg * 1e-3);
+      hint = Printf(": ball.mass_kg = %g looks like grams (%g kg)", *scene.ball.mass_kg,
+                    *scene.ball.mass_kg * 1e-3);
     } else if (scene.ball.density_kg_m3 && rho < kMinDensity && rho * 1e3 >= kMinDensity &&
                rho * 1e3 <= kMaxDensity) {
-      hint = Fmt(": ball.density_kg_m3 = %g looks like g/cm^3 (%g kg/m^3)", rho, rho * 1e3);
+      hint = Printf(": ball.density_kg_m3 = %g looks like g/cm^3 (%g kg/m^3)", rho, rho * 1e3);
     }
     out.push_back({"units_suspect",
-                   Fmt("the ball's density %g kg/m^3 is outside 10 .. 25000 kg/m^3", rho) + hint,
+                   Printf("the ball's density %g kg/m^3 is outside 10 .. 25000 kg/m^3", rho) + hint,
                    -1});
   }
   const double g = scene.environment.g_m_s2;
   if (g < kMinG || g > kMaxG) {
     out.push_back({"units_suspect",
-                   Fmt("environment.g_m_s2 = %g is outside 1 .. 30 m/s^2", g) +
+                   Printf("environment.g_m_s2 = %g is outside 1 .. 30 m/s^2", g) +
                        (g > 100.0 && g * 1e-3 >= kMinG && g * 1e-3 <= kMaxG
-                            ? Fmt(": it looks like mm/s^2 (%g m/s^2)", g * 1e-3)
+                            ? Printf(": it looks like mm/s^2 (%g m/s^2)", g * 1e-3)
                             : std::string(": is it in m/s^2?")),
                    -1});
   }

@@ -329,7 +329,7 @@ ChannelSelection ParseChannelSelection(const std::string& text) {
     return s;
   }
   throw Error(ErrorCode::kUsage,
-              "--channel: '" + text + "' is not a channel (expected a 0-based index, mix or auto)");
+              "channel '" + text + "': not a channel (expected a 0-based index, mix or auto)");
 }
 
 double ImpactToNoiseDb(const std::vector<float>& x) {
@@ -353,7 +353,7 @@ SelectedSignal SelectChannel(const Audio& audio, const ChannelSelection& selecti
   switch (selection.kind) {
     case ChannelSelection::Kind::kIndex:
       if (selection.index < 0 || selection.index >= nch) {
-        throw Error(ErrorCode::kUsage, audio.info.path + ": --channel " +
+        throw Error(ErrorCode::kUsage, audio.info.path + ": channel " +
                                            std::to_string(selection.index) + " out of range (" +
                                            std::to_string(nch) + " channel" +
                                            (nch == 1 ? "" : "s") + ", 0-based)");

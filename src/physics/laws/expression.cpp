@@ -44,8 +44,8 @@ class Expression final : public LawBase {
   explicit Expression(const LawSpec& spec) : expression_(spec.expression) {
     if (expression_.empty()) {
       throw Error(ErrorCode::kBadParameter,
-                  "law expression: no force expression given (set law.expression in the scene "
-                  "or --expression, e.g. \"k * d^1.5 * (1 + alpha * v)\")");
+                  "law expression: no force expression given (law.expression, e.g. "
+                  "\"k * d^1.5 * (1 + alpha * v)\")");
     }
     values_.reserve(spec.parameters.size());
     vars_.assign(spec.parameters.size(), 0.0);  // stable addresses for DefineVar

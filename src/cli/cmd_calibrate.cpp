@@ -57,7 +57,7 @@ struct CalibrateArgs {
   bool force = false;
   bool json = false;
   bool csv = false;
-  int jobs = 1;
+  int jobs = DefaultJobs();
   bool batch = false;
   ReportPaths report;  // --report FILE.html, --plot FILE.svg|png (report_output.hpp)
   bool quiet = false;  // no progress line
@@ -467,7 +467,9 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag("--force", args->force, "replace an existing output file");
   sub->add_flag("--json", args->json, "print the parameter-file object to stdout");
   sub->add_flag("--csv", args->csv, "print CSV");
-  sub->add_option("--jobs", args->jobs, "worker threads (detection; --batch fits)");
+  sub->add_option("--jobs", args->jobs,
+                  "worker threads (detection, --batch fits, --law all); default: the machine's "
+                  "cores, at most 8 (results do not depend on it)");
   sub->add_flag("--batch", args->batch, "fit each file separately, one summary line per file");
   AddOutputOption(sub, "--report", &args->report.html, "also write the HTML report of this fit");
   AddOutputOption(sub, "--plot", &args->report.plot,

@@ -39,7 +39,7 @@ struct ReportArgs {
   std::vector<std::string> fix;
   bool ignore_drop = false;
   DetectFlags detect;
-  int jobs = 1;
+  int jobs = DefaultJobs();
   bool quiet = false;
   // Points of the fitted e(v) curve and band in the report (CalibrationOptions::e_of_v_points):
   // more than calibrate's table so that the curve is smooth on a log axis.
@@ -190,7 +190,8 @@ void RegisterReport(CLI::App& app) {
   sub->add_flag("--ignore-drop", args->ignore_drop,
                 "do not use the scene's drop height/speed for the first impact (as calibrate)");
   AddDetectFlags(sub, &args->detect);
-  sub->add_option("--jobs", args->jobs, "worker threads (--law all)");
+  sub->add_option("--jobs", args->jobs,
+                  "worker threads (--law all); default: the machine's cores, at most 8");
   sub->callback([args, sub]() {
     args->argv.clear();
     for (const std::string& f : args->files) args->argv.push_back(f);

@@ -1,6 +1,8 @@
 #include "output.hpp"
 
+#include <algorithm>
 #include <cstdio>
+#include <thread>
 
 #include "bouncecal/core/error.hpp"
 
@@ -19,6 +21,11 @@ CLI::Option* AddOutputOption(CLI::App* sub, const std::string& names, std::strin
 void PrintWarnings(const std::vector<Warning>& warnings) {
   for (const Warning& w : warnings)
     std::fprintf(stderr, "bouncecal: warning [%s]: %s\n", w.code.c_str(), w.message.c_str());
+}
+
+int DefaultJobs() {
+  const unsigned n = std::thread::hardware_concurrency();
+  return static_cast<int>(std::clamp(n == 0 ? 1u : n, 1u, 8u));
 }
 
 }  // namespace bouncecal::cli

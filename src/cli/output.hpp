@@ -17,6 +17,10 @@ namespace bouncecal::cli {
 CLI::Option* AddOutputOption(CLI::App* sub, const std::string& names, std::string* path,
                              const std::string& help);
 
+// Default worker threads for --jobs: the machine's cores, at least 1 and at most 8. Outputs do
+// not depend on the thread count (tested: --law all and --batch are byte-identical).
+int DefaultJobs();
+
 // "bouncecal: warning [code]: message" on stderr, one line each.
 void PrintWarnings(const std::vector<Warning>& warnings);
 

@@ -85,6 +85,12 @@ TEST(AnalyzeCli, TheSeedPaperLineOnlyForASteelBallOnCopper) {
   ASSERT_EQ(glass.exit_code, 0) << glass.err;
   EXPECT_NE(glass.out.find("mean eta of the first three"), std::string::npos);
   EXPECT_EQ(glass.out.find("seed 002: 0.58"), std::string::npos) << glass.out;
+  // A ball of unstated material on an unstated surface: the built-in steel and copper are
+  // defaults, not the user's experiment, so no comparison with the seed paper either.
+  const auto unstated = Analyze("--height 0.2 --diameter 0.05 --mass 0.05");
+  ASSERT_EQ(unstated.exit_code, 0) << unstated.err;
+  EXPECT_NE(unstated.out.find("mean eta of the first three"), std::string::npos);
+  EXPECT_EQ(unstated.out.find("seed 002: 0.58"), std::string::npos) << unstated.out;
 }
 
 TEST(AnalyzeCli, UnitSlipsAndAWrongHeightAreFlagged) {

@@ -102,6 +102,10 @@ TEST(ImpactsFile, BadInputNamesFileAndLine) {
   ExpectBad(Write(d, "bad.json", R"({"sequences": [{"impacts": [{"time_s": "x"}]}]})"),
             "sequences[0].impacts[0]", "not a number");
   ExpectBad(Write(d, "broken.json", "{\"sequences\": ["), "byte", "not valid JSON");
+  // Found by tools/run-fuzz.sh (tests/fuzz/regressions/fuzz_impacts/): a number beyond a
+  // double's range escaped as nlohmann's out_of_range, an "internal error" with exit 1.
+  ExpectBad(Write(d, "huge.json", "[1e542.5\t\"\"\"\"\"\"\"\"\"\"1v"), "",
+            "beyond the range of a double");
   try {
     ReadImpactsFile(d / "missing.csv");
     ADD_FAILURE();

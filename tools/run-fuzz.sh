@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (tests/fuzz/fuzz_*.cpp) with clang into build-fuzz/ and runs each
+# for SECONDS (default 60), seeded from the project's own inputs (data/, example scenes, the
+# bundled recording, parameter and impacts files made by the CLI). Findings (crash-*, leak-*,
+# timeout-*) stay in build-fuzz/findings/<target>/: each becomes a regression input under
+# tests/fuzz/regressions/<target>/ (replayed by `tools/run-fuzz.sh 0`, which runs every target
+# once over its corpus and regressions without fuzzing).
+#   tools/run-fuzz.sh [SECONDS] [TARGET...]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+seconds=${1:-60}
+shift || true
+build=$root/build-fuzz
+CXX=clang++ CC=clang cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DBOUNCECAL_FUZZ=ON -DBOUNCECAL_BUILD_TESTS=OFF -DBOUNCECAL_BUILD_TOOLS=OFF \
+  -DBOUNCECAL_PYTHON=OFF >/dev/null
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene fuzz_impacts fuzz_params fuzz_expression fuzz_audio)
+cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"
+
+seed() {  # target corpus-dir: the project's own valid inputs
+  local t=$1 dir=$2
+  mkdir -p "$dir"
+  case $t in
+    fuzz_scene) cp "$root"/data/*.toml "$root"/data/scenes/*.toml "$dir"/ 2>/dev/null || true ;;
+    fuzz_impacts)
+      printf '1.5\n1.87\n2.21\n2.53\n' >"$dir/list.txt"
+      printf 'time_s,sigma_s\n1.5,1e-5\n1.87,1e-5\n2.21,1e-5\n' >"$dir/times.csv"
+      printf '1.5\t1.5\timpact\n1.87\t1.87\timpact\n2.21\t2.21\timpact\n' >"$dir/labels.txt" ;;
+    fuzz_params)
+      [ -x "$root/build/bouncecal" ] && "$root/build/bouncecal" calibrate \
+        "$root/data/default_steel_copper.flac" --scene "$root/data/default_steel_copper.toml" \
+        --json >"$dir/params.json" 2>/dev/null || true ;;
+    fuzz_expression)
+      printf 'k * d^1.5 * (1 + c * v)' >"$dir/hc"; printf 'k*d + c*v' >"$dir/kv" ;;
+    fuzz_audio)
+      # A short cut of the bundled recording as WAV (libsndfile's header and data paths).
+      [ -x "$root/build/bouncecal" ] && "$root/build/bouncecal" synth --preset phone-16k \
+        --duration 2 --seed 1 --force -o "$dir/short.wav" >/dev/null 2>&1 || true
+      rm -f "$dir"/*.truth.json ;;
+  esac
+}
+
+for t in "${targets[@]}"; do
+  corpus=$build/corpus/$t
+  findings=$build/findings/$t
+  regressions=$root/tests/fuzz/regressions/$t
+  mkdir -p "$findings"
+  seed "$t" "$corpus"
+  inputs=("$corpus")
+  [ -d "$regressions" ] && inputs+=("$regressions")
+  start=$SECONDS
+  if [ "$seconds" = 0 ]; then
+    "$build/$t" -runs=0 "${inputs[@]}"
+  else
+    "$build/$t" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 \
+      -artifact_prefix="$findings/" "${inputs[@]}" 2>"$build/$t.log" || {
+      echo "$t: FINDING (see $build/$t.log and $findings/)"; tail -30 "$build/$t.log"; exit 1; }
+    echo "$t: $((SECONDS - start)) s, $(grep -o 'cov: [0-9]*' "$build/$t.log" | tail -1), \
+$(grep -o 'Done [0-9]* runs' "$build/$t.log" | tail -1), no finding"
+  fi
+done

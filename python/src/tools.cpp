@@ -14,19 +14,6 @@
 namespace bouncecal::python {
 namespace {
 
-// A law defined by an expression has no fixed parameters; it is listed with this example
-// (the same as `bouncecal laws`).
-LawSpec ListingSpec(const std::string& name) {
-  LawSpec spec;
-  spec.name = name;
-  const LawInfo* row = FindLaw(name);
-  if (row != nullptr && row->needs_expression) {
-    spec.expression = "k * d^1.5 * (1 + alpha * v)";
-    spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
-  }
-  return spec;
-}
-
 // `bouncecal laws --json` (bouncecal.laws/1).
 nlohmann::json LawsListing(const std::string& name, const Scene& scene) {
   std::vector<LawInfo> infos = RegisteredLaws();
@@ -34,13 +21,13 @@ nlohmann::json LawsListing(const std::string& name, const Scene& scene) {
     std::vector<LawInfo> one;
     for (const LawInfo& i : infos)
       if (i.name == name) one.push_back(i);
-    if (one.empty()) CreateLaw(ListingSpec(name), scene);  // throws the "unknown law" error
+    if (one.empty()) CreateLaw(ExampleLawSpec(name), scene);  // throws the "unknown law" error
     infos = one;
   }
   std::vector<nlohmann::json> laws;
   for (const LawInfo& info : infos) {
-    const std::unique_ptr<ContactLaw> law = CreateLaw(ListingSpec(info.name), scene);
-    laws.push_back(LawListingJson(*law, info.summary, ListingSpec(info.name).expression));
+    const std::unique_ptr<ContactLaw> law = CreateLaw(ExampleLawSpec(info.name), scene);
+    laws.push_back(LawListingJson(*law, info.summary, ExampleLawSpec(info.name).expression));
   }
   return LawsJson(laws);
 }

@@ -29,18 +29,6 @@ struct LawsFlags {
   std::string name;
 };
 
-// A law defined by an expression has no fixed parameters; it is listed with this example.
-LawSpec ListingSpec(const std::string& name) {
-  LawSpec spec;
-  spec.name = name;
-  const LawInfo* row = FindLaw(name);
-  if (row != nullptr && row->needs_expression) {
-    spec.expression = "k * d^1.5 * (1 + alpha * v)";
-    spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
-  }
-  return spec;
-}
-
 std::string Fmt(double v) {
   if (v <= -1e300) return "-inf";
   if (v >= 1e300) return "inf";
@@ -57,7 +45,7 @@ void Run(const LawsFlags& f) {
     for (const LawInfo& i : infos) {
       if (i.name == f.name) one.push_back(i);
     }
-    if (one.empty()) CreateLaw(ListingSpec(f.name), scene);  // throws the "unknown law" error
+    if (one.empty()) CreateLaw(ExampleLawSpec(f.name), scene);  // throws the "unknown law" error
     infos = one;
   }
   std::vector<nlohmann::json> laws;
@@ -65,8 +53,8 @@ void Run(const LawsFlags& f) {
   std::ostringstream csv;
   csv << "law,parameter,unit,default,lower,upper,damping,description\n";
   for (const LawInfo& info : infos) {
-    const std::unique_ptr<ContactLaw> law = CreateLaw(ListingSpec(info.name), scene);
-    const std::string expression = ListingSpec(info.name).expression;
+    const std::unique_ptr<ContactLaw> law = CreateLaw(ExampleLawSpec(info.name), scene);
+    const std::string expression = ExampleLawSpec(info.name).expression;
     laws.push_back(LawListingJson(*law, info.summary, expression));
     for (const ParameterSpec& s : law->Parameters()) {
       csv << CsvField(info.name) << "," << CsvField(s.name) << "," << CsvField(s.unit) << ","

@@ -37,6 +37,14 @@ std::string CommentBlock(const std::vector<std::string>& lines, const std::strin
 std::string LammpsBounceDeck(const DeckInput& in);
 std::string LiggghtsBounceDeck(const DeckInput& in);
 std::string YadeBounceScript(const DeckInput& in);
+// Seed 002's packing scene (docs/physics.md §1): 1 cm steel spheres, k_n = k_s = 1e7 N/m,
+// mu = 0.3, and the linear damping that gives restitution e: gamma_n = 2 zeta sqrt(kn/m*),
+// zeta = -ln e / sqrt(ln^2 e + pi^2), with m* = m/2 between spheres and m* = m against a wall.
+struct PackingScene {
+  double kn = 1e7, mu = 0.3, d = 0.01, rho = 7800.0;
+  double gn_pp = 0.0, gn_pw = 0.0;  // gamma_n (1/s): sphere-sphere, sphere-wall
+  explicit PackingScene(double restitution);
+};
 std::string LammpsPackingDeck(const DeckInput& in);
 std::string LiggghtsPackingDeck(const DeckInput& in);
 

@@ -32,6 +32,14 @@ std::string Num(double v) {
   return buf;
 }
 
+PackingScene::PackingScene(double restitution) {
+  const double le = std::log(restitution);
+  const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
+  const double m = rho * M_PI * d * d * d / 6.0;
+  gn_pp = 2.0 * zeta * std::sqrt(kn / (0.5 * m));
+  gn_pw = 2.0 * zeta * std::sqrt(kn / m);
+}
+
 std::string CommentBlock(const std::vector<std::string>& lines, const std::string& prefix) {
   std::string out;
   for (const std::string& line : lines) out += prefix + line + "\n";

@@ -73,12 +73,8 @@ std::string LammpsPackingDeck(const DeckInput& in) {
   // Seed 002's validation scene (docs/physics.md §1): k_n = k_s = 1e7 N/m, mu = 0.3, the fitted e.
   // gran/hooke/history damps with m* gamma_n: the same e needs gamma_n = 2 zeta sqrt(kn/m*),
   // m* = m/2 between spheres and m* = m against the walls.
-  const double kn = 1e7, mu = 0.3, d = 0.01, rho = 7800.0;
-  const double le = std::log(in.packing_restitution);
-  const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
-  const double m = rho * M_PI * d * d * d / 6.0;
-  const double gn_pp = 2.0 * zeta * std::sqrt(kn / (0.5 * m));
-  const double gn_pw = 2.0 * zeta * std::sqrt(kn / m);
+  const PackingScene ps(in.packing_restitution);
+  const double kn = ps.kn, mu = ps.mu, d = ps.d, rho = ps.rho, gn_pp = ps.gn_pp, gn_pw = ps.gn_pw;
   std::ostringstream os;
   os << CommentBlock(in.comments, "# ");
   os << "# Run: mpirun -np N lmp -in in.packing   (-var steps N, -var seed S)\n\n"

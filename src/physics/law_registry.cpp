@@ -233,4 +233,15 @@ std::unique_ptr<ContactLaw> CreateLaw(const LawSpec& spec, const Scene& scene) {
   return law;
 }
 
+LawSpec ExampleLawSpec(const std::string& name) {
+  LawSpec spec;
+  spec.name = name;
+  const LawInfo* row = FindLaw(name);
+  if (row != nullptr && row->needs_expression) {
+    spec.expression = "k * d^1.5 * (1 + alpha * v)";
+    spec.parameters = {{"k", 1e10}, {"alpha", 0.3}};
+  }
+  return spec;
+}
+
 }  // namespace bouncecal

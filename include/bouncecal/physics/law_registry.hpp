@@ -33,6 +33,10 @@ struct LawInfo {
   bool HasClosedForm(const std::string& form) const;
 };
 
+// The spec `bouncecal laws` lists a law with: its name, and for a law defined by an expression
+// (no fixed parameters) the example "k * d^1.5 * (1 + alpha * v)" with k = 1e10, alpha = 0.3.
+LawSpec ExampleLawSpec(const std::string& name);
+
 // Every registered law, in table order.
 std::vector<LawInfo> RegisteredLaws();
 // The row of a law by name; nullptr if unknown.

@@ -51,7 +51,10 @@ TEST(AnalyzeCli, TheBundledSceneListsItsAssumptionsAndTheScatter) {
   for (const char* k : {"effects.drag", "ball.diameter_m", "drop.height_m"}) {
     EXPECT_FALSE(Contains(assumed, k)) << k;
   }
-  EXPECT_TRUE(j.at("warnings").empty()) << j.at("warnings");
+  // Nothing about the analysis: the only warnings are the detector's notes on tail impacts it
+  // removed (at SNR ~0 dB their timing sigma is too large to keep).
+  for (const auto& w : j.at("warnings"))
+    EXPECT_TRUE(w.at("code") == "sigma_removed" || w.at("code") == "low_snr_removed") << w;
   // A synthetic recording without scatter: scatter 0 (or far below the timing sigma).
   EXPECT_LT(j.at("summary").at("scatter_e").get<double>(), 1e-5);
   EXPECT_TRUE(j.at("summary").at("drop_consistent").get<bool>());

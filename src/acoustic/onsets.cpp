@@ -99,25 +99,24 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order) {
   return a;
 }
 
-std::vector<float> Whiten(const std::vector<float>& x, int order, std::size_t max_fit_samples) {
+std::vector<float> Whiten(const std::vector<float>& x, int order) {
   const std::size_t n = x.size();
   if (order <= 0 || n <= static_cast<std::size_t>(order) * 4) return x;
-  // Autocorrelation on blocks spread over the file (all of it when short). The lag products
-  // only run inside a block, so blocks are long compared with the order.
+  // Autocorrelation of the whole signal, r[l] = sum_i x[i] x[i - l]. All of it, so that the
+  // predictor does not depend on where the file starts: an impact's ringing dominates r, and a
+  // fit on the first seconds or on a grid of blocks anchored at sample 0 took impacts in or out
+  // with the start (cutting the quiet before a superball's drop moved its impact times by a
+  // ringing cycle). Blocks only bound the float partial sums; the lag products cross them.
   const std::size_t block = 4096;
-  const std::size_t nblocks_total = (n + block - 1) / block;
-  const std::size_t nblocks_fit = std::max<std::size_t>(1, max_fit_samples / block);
-  const std::size_t stride = std::max<std::size_t>(1, nblocks_total / nblocks_fit);
   std::vector<double> r(static_cast<std::size_t>(order) + 1, 0.0);
-  for (std::size_t b = 0; b < nblocks_total; b += stride) {
-    const std::size_t s = b * block;
+  for (std::size_t s = 0; s < n; s += block) {
     const std::size_t e = std::min(n, s + block);
     for (int lag = 0; lag <= order; ++lag) {
       // Eight independent float partial sums (instruction-level parallelism; a block of 4096
       // products is well inside float precision), summed in double per block.
       const std::size_t l = static_cast<std::size_t>(lag);
       float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-      std::size_t i = s + l;
+      std::size_t i = std::max(s, l);
       for (; i + 8 <= e; i += 8)
         for (std::size_t q = 0; q < 8; ++q) acc[q] += x[i + q] * x[i + q - l];
       double total = 0.0;

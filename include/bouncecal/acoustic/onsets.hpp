@@ -87,10 +87,10 @@ bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples
 // (Makhoul 1975, Proc. IEEE 63(4), eqs. 38-45). r[0] must be > 0.
 std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 
-// Fits the predictor to x (autocorrelation method, at most max_fit_samples spread over x) and
-// returns the prediction error (same length; the first `order` samples use the available past).
-std::vector<float> Whiten(const std::vector<float>& x, int order,
-                          std::size_t max_fit_samples = 1u << 17);
+// Fits the predictor to x (autocorrelation method, over all of x: the fit, hence the whitening,
+// does not depend on where x starts beyond the audio cut off) and returns the prediction error
+// (same length; the first `order` samples use the available past).
+std::vector<float> Whiten(const std::vector<float>& x, int order);
 
 // Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
 // hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).

@@ -13,10 +13,13 @@
 //      whitened by the same filter and impacts of one ball keep one shape;
 //   2. local whitening of a short segment around each member;
 //   3. local measures: SNR against the robust noise floor just before the onset, peak level;
-//   4. template: the whitened waveform of the member with the highest SNR (ties: the earliest);
-//      members are timed relative to it, and the sequence's constant offset is set by the median
-//      of (own AIC change-point pick - template time) over the 9 best-matching members (so it
-//      does not depend on which member is the template, nor on the weak tail);
+//   4. template: the whitened waveform of the earliest member whose SNR is within 1 dB of the
+//      best (the best itself changes with SNR differences of a fraction of a dB); members are
+//      timed relative to it, and the sequence's constant offset is set by the trimmed mean (the
+//      middle half) of (own AIC change-point pick - template time) over the 9 loudest members,
+//      their picks made in a whitening fitted on their own neighbourhoods (so it depends neither
+//      on which member is the template nor on the weak tail, which comes and goes with the audio
+//      around the sequence);
 //   5. each member is timed by the lag of its normalised cross-correlation (NCC) peak with the
 //      template (band-limited interpolation of the correlation around the peak); a member that
 //      does not match (NCC < min_template_ncc) is timed by its own AIC pick;

@@ -14,8 +14,8 @@
 //    likely cause (file starts after the drop, a unit slip, the height of the hand instead of
 //    the ball's bottom).
 //  - CheckDrag (scene without drag): recomputes e with quadratic drag for the ball and reports
-//    `drag_likely_needed` with the size of the effect when it exceeds drag_effect_sigmas of
-//    the timing sigma of e.
+//    `drag_likely_needed` with the size of the effect when, at some bounce, it exceeds
+//    drag_effect_sigmas of that bounce's sigma of e.
 // Fits use the same flags: irregular bounces and an inconsistent first impact are left out.
 #pragma once
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
@@ -404,6 +406,46 @@ TEST_F(AudioTest, WriteErrors) {
   EXPECT_EQ(code(Path("a.wav"), "PCM_16", 48000, {x[0], std::vector<float>(5)}),
             ErrorCode::kBadParameter);
   EXPECT_TRUE(fs::is_empty(dir_));  // nothing partial left behind
+}
+
+// An MP3 goes to FFmpeg, not libsndfile's libmpg123 (which prints its own "Note: Illegal
+// Audio-MPEG-Header" / "dequantization failed" lines on a damaged file): a good one decodes, a
+// damaged one gives our one message and exit 4, with nothing else on stderr.
+TEST_F(AudioTest, Mp3IsDecodedQuietlyByFfmpeg) {
+  const SynthResult s = Synthesize(SynthPreset("pingpong-wood"));
+  const std::string wav = Path("drop.wav"), mp3 = Path("drop.mp3"), bad = Path("bad.mp3");
+  WriteAudio(wav, s.recording.channels, s.recording.sample_rate_hz);
+  if (std::system("command -v ffmpeg > /dev/null 2>&1") != 0 ||
+      std::system(("ffmpeg -nostdin -loglevel error -y -i '" + wav + "' -b:a 192k '" + mp3 + "'")
+                      .c_str()) != 0) {
+    const char* ci = std::getenv("CI");
+    if (ci && std::string(ci) == "true") FAIL() << "ffmpeg is needed to make the mp3 test file";
+    GTEST_SKIP() << "no ffmpeg program to make the mp3 test file";
+  }
+  const Audio a = ReadAudio(mp3);
+  EXPECT_EQ(a.info.decoder, "ffmpeg");
+  EXPECT_TRUE(a.info.lossy);
+  EXPECT_GE(DetectImpacts(a, DetectOptions{}).main().impacts.size(), 20u);
+  // Damage: every MPEG frame header after the first kilobyte loses its layer bits.
+  std::ifstream in(mp3, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  int damaged = 0;
+  for (std::size_t i = 1024; i + 1 < bytes.size(); ++i) {
+    const auto b0 = static_cast<unsigned char>(bytes[i]),
+               b1 = static_cast<unsigned char>(bytes[i + 1]);
+    if (b0 == 0xFF && (b1 & 0xE0) == 0xE0 && (i % 3 == 0)) {
+      bytes[i + 1] = static_cast<char>(b1 ^ 0x1E);
+      ++damaged;
+    }
+  }
+  ASSERT_GT(damaged, 10);
+  std::ofstream(bad, std::ios::binary) << bytes;
+  const testing_util::CommandResult r = testing_util::RunCommand(BOUNCECAL_BINARY, "detect " + bad);
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_EQ(r.err.find("Note:"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("libmpg123"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.rfind("bouncecal: " + bad + ": ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 }
 
 // --- Phone formats through FFmpeg ------------------------------------------------------------

@@ -218,6 +218,20 @@ ClippingReport AnalyzeClipping(const std::vector<float>& x, int channel) {
   return r;
 }
 
+namespace {
+
+// MPEG audio by its first bytes: an ID3v2 tag ("ID3"), or an MPEG audio frame sync (11 set
+// bits, then a layer other than the reserved 00).
+bool LooksLikeMpegAudio(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  unsigned char b[3] = {0, 0, 0};
+  if (!f.read(reinterpret_cast<char*>(b), 3)) return false;
+  if (b[0] == 'I' && b[1] == 'D' && b[2] == '3') return true;
+  return b[0] == 0xFF && (b[1] & 0xE0) == 0xE0 && (b[1] & 0x06) != 0;
+}
+
+}  // namespace
+
 Audio ReadAudio(const std::string& path) {
   std::error_code ec;
   const fs::path p(path);
@@ -234,6 +248,11 @@ Audio ReadAudio(const std::string& path) {
   const auto size = fs::file_size(p, ec);
   if (!ec && size == 0) throw Error(ErrorCode::kNotAudio, path + ": empty file (0 bytes)");
 
+  if (LooksLikeMpegAudio(p) && FfmpegAvailable()) {
+    Audio decoded = ReadAudioFfmpeg(path);
+    CheckSamples(&decoded);
+    return decoded;
+  }
   SF_INFO sfinfo{};
   SndfilePtr f(sf_open(path.c_str(), SFM_READ, &sfinfo));
   if (!f) {

@@ -72,6 +72,8 @@ const Module& TheModule() {
 
 }  // namespace
 
+bool FfmpegAvailable() { return TheModule().decode != nullptr; }
+
 Audio ReadAudioFfmpeg(const std::string& path) {
   const Module& m = TheModule();
   if (m.decode == nullptr) {

@@ -135,6 +135,14 @@ Solution SolveRestitution(const FitProblem& problem, const std::vector<double>& 
                           const std::vector<bool>& held, double sigma_start, bool alternate,
                           std::atomic<long>* simulations,
                           const std::vector<double>* reference = nullptr);
+// How many impacts each flagged gap holds: count[k] for measured impact k (0 unless k is in
+// sequence.missed_after). The detector flags a gap ("at least one impact missing between k and
+// k + 1"); the trajectory needs the number, since measured impact k + 1 is simulated impact
+// k + 1 + (all misses before it). The intervals inside a gap continue the sequence's geometric
+// decay: with d the last interval before the gap (predicted, after an earlier gap) and r the
+// median ratio of the last three regular intervals, n is the count whose n + 1 intervals
+// d r + ... + d r^(n+1) come closest to the gap (1 <= n <= 50).
+std::vector<int> MissedCounts(const Sequence& sequence);
 // Impact times with the scatter sigma_s propagated along the trajectory, from one start.
 Solution SolveTrajectory(const FitProblem& problem, const std::vector<double>& start,
                          const std::vector<bool>& held, double sigma_s,

@@ -10,6 +10,7 @@
 // / sigma_v; an exact one holds v0.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 
 #include <ceres/ceres.h>
@@ -35,6 +36,53 @@ struct SimPoint {
   std::vector<double> jac;
 };
 
+}  // namespace
+
+std::vector<int> MissedCounts(const Sequence& sequence) {
+  const std::vector<Impact>& q = sequence.impacts;
+  std::vector<int> count(q.size(), 0);
+  const std::set<int> flagged(sequence.missed_after.begin(), sequence.missed_after.end());
+  // The last regular intervals (not spanning a gap), newest last, and the interval the sequence
+  // has reached (measured, or predicted across earlier gaps).
+  std::vector<double> regular;
+  double current = 0.0;
+  for (size_t k = 0; k + 1 < q.size(); ++k) {
+    const double dt = q[k + 1].time_s - q[k].time_s;
+    if (!flagged.count(static_cast<int>(k))) {
+      regular.push_back(dt);
+      current = dt;
+      continue;
+    }
+    std::vector<double> ratios;
+    for (size_t i = regular.size() >= 4 ? regular.size() - 3 : 1; i < regular.size(); ++i)
+      if (regular[i - 1] > 0.0) ratios.push_back(regular[i] / regular[i - 1]);
+    double r = 1.0;
+    if (!ratios.empty()) {
+      std::sort(ratios.begin(), ratios.end());
+      r = ratios[ratios.size() / 2];
+    }
+    if (!(current > 0.0) || !(r > 0.0) || !(r < 1.0)) {
+      count[k] = 1;  // nothing to extrapolate from: the flag's own "at least one"
+      continue;
+    }
+    int best = 1;
+    double best_miss = std::numeric_limits<double>::infinity(), sum = 0.0, d = current;
+    for (int n = 1; n <= 50; ++n) {
+      if (n == 1)
+        sum = d * r + d * r * r;
+      else
+        sum += d * std::pow(r, n + 1);
+      const double miss = std::fabs(sum - dt);
+      if (miss < best_miss) best_miss = miss, best = n;
+    }
+    count[k] = best;
+    current = d * std::pow(r, best + 1);
+  }
+  return count;
+}
+
+namespace {
+
 // One recording's simulated impact times. Const after construction: evaluations do not share
 // state, so fits may run in parallel.
 class TrajectoryModel {
@@ -47,7 +95,7 @@ class TrajectoryModel {
         analytic_(fp.options.derivatives == DerivativeMode::kAuto && fp.setup.has_gradient &&
                   !fp.scene.effects.contact_duration && !fp.scene.effects.surface_compliance),
         rel_step_(RelativeStep(fp.options.rel_tolerance)) {
-    const std::set<int> missed(rec.sequence.missed_after.begin(), rec.sequence.missed_after.end());
+    const std::vector<int> missed = MissedCounts(rec.sequence);
     int before = 0;
     for (size_t k = 0; k < rec.sequence.impacts.size(); ++k) {
       const Impact& i = rec.sequence.impacts[k];
@@ -56,7 +104,7 @@ class TrajectoryModel {
       // Impacts the detector flagged as missed (between measured k and k+1) still happen in
       // the simulation: measured impact k is simulated impact k + (misses before it).
       sim_index_.push_back(static_cast<int>(k) + before);
-      if (missed.count(static_cast<int>(k))) ++before;
+      before += missed[k];
     }
     n_sim_ = static_cast<size_t>(sim_index_.back()) + 1;
     sim_.rel_tolerance = fp.options.rel_tolerance;

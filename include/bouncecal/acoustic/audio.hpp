@@ -65,10 +65,15 @@ struct Audio {
   std::vector<ClippingReport> clipping;      // one per channel
 };
 
-// libsndfile first, FFmpeg when libsndfile cannot open the file.
+// libsndfile first, FFmpeg when libsndfile cannot open the file. MPEG audio (MP3: an ID3 tag or
+// an MPEG frame sync at the start) goes to FFmpeg first: libsndfile 1.2 decodes it with
+// libmpg123 opened without MPG123_QUIET, which prints its own lines on stderr for a damaged
+// file; FFmpeg is quiet and its errors become ours. Without the FFmpeg module, libsndfile.
 Audio ReadAudio(const std::string& path);
 // FFmpeg only (the fallback above). Throws Error(kNotAudio) naming the file.
 Audio ReadAudioFfmpeg(const std::string& path);
+// Whether the FFmpeg module (libbouncecal_ffmpeg.so) loads here.
+bool FfmpegAvailable();
 
 // Which channel the detector listens to.
 struct ChannelSelection {

@@ -235,9 +235,15 @@ struct SynthSpec {
 };
 
 // Benchmark-corpus presets: "steel-copper", "glass-glass", "pingpong-wood", "rubber-wood",
-// "phone-16k", "two-drops". Throws Error(kBadParameter) for an unknown name.
+// "phone-16k", "two-drops". The scene (ball, surface, drop, effects) is the bundled scene file
+// SynthPresetSceneFile(name) (data/scenes/NAME.toml, bundled_scenes.hpp; source left empty);
+// e(v), the truth options, the render settings and the drops are the preset's own. Throws
+// Error(kBadParameter) for an unknown name.
 SynthSpec SynthPreset(const std::string& name);
 std::vector<std::string> SynthPresetNames();
+// The bundled scene file (BundledSceneNames) a preset takes its scene from ("two-drops":
+// "steel-copper"). Throws Error(kBadParameter) for an unknown name.
+std::string SynthPresetSceneFile(const std::string& name);
 
 struct SynthResult {
   std::vector<std::vector<TruthImpact>> truth;  // per drop

@@ -44,8 +44,8 @@ py::object Laws(const py::dict& options) {
 // The scene of simulate: the scene flags, or a parameter file's replay (then no scene flag).
 Scene SimulateScene(Options& o) {
   const std::string params = o.TakeString("params").value_or("");
-  const cli::SceneFlags flags = TakeSceneFlags(o, true);
-  if (params.empty()) return cli::ResolveScene(flags);
+  const SceneOverrides flags = TakeSceneOverrides(o, true);
+  if (params.empty()) return ResolveScene(flags);
   const bool any_scene_option =
       !flags.scene_file.empty() || flags.height_m || flags.height_sigma_m ||
       flags.impact_speed_m_s || flags.diameter_m || flags.density_kg_m3 || flags.mass_kg ||

@@ -97,7 +97,7 @@ py::object DetectBinding(const std::vector<std::string>& files, const py::dict& 
     char buf[64];
     std::snprintf(buf, sizeof buf, "%g", hop_ms);
     throw Error(ErrorCode::kUsage,
-                std::string("--hop-ms ") + buf + ": must be in [0, 50] (0 = auto)");
+                std::string("hop_ms ") + buf + ": must be in [0, 50] (0 = auto)");
   }
   py::gil_scoped_release release;
   const auto inputs = PairInputs(files, flags);
@@ -141,7 +141,7 @@ py::object AnalyzeBinding(const std::vector<std::string>& files, const py::dict&
   aopt.check_drag = !gs.Given("effects.drag") && gs.ball_given;
   if (contact_time_s) aopt.contact_time_s = *contact_time_s;
   std::string why;
-  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
+  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "contact_time: " + why);
   py::gil_scoped_release release;
   const auto inputs = PairInputs(files, detect);
   const nlohmann::json assumed = AssumedJson(AssumedValues(gs, false));
@@ -219,10 +219,10 @@ CalibrateRun TakeCalibrateRun(const std::vector<std::string>& files, Options& o)
   r.force = o.TakeFlag("force");
   o.Finish("calibrate");
   if (r.jobs < 1 || r.jobs > 256) {
-    throw Error(ErrorCode::kUsage, "--jobs " + std::to_string(r.jobs) + ": expected 1..256");
+    throw Error(ErrorCode::kUsage, "jobs " + std::to_string(r.jobs) + ": expected 1..256");
   }
   if (r.compare_all && r.batch) {
-    throw Error(ErrorCode::kUsage, "--law all cannot be combined with --batch");
+    throw Error(ErrorCode::kUsage, "law=\"all\" cannot be combined with batch=True");
   }
   r.gs = ResolveGivenScene(sf);
   if (!r.gs.ball_given) {
@@ -230,8 +230,8 @@ CalibrateRun TakeCalibrateRun(const std::vector<std::string>& files, Options& o)
     throw Error(ErrorCode::kBadScene,
                 std::string("calibrate: the ball's ") + (diameter ? "mass" : "size and mass") +
                     " are not given (they enter the contact law, its default stiffness and the "
-                    "drag): give --scene FILE with a [ball] table, or --diameter M with --mass "
-                    "KG (or --density KG_M3, or --material NAME)");
+                    "drag): give scene=FILE with a [ball] table, or diameter=M with mass=KG "
+                    "(or density=KG_M3, or material=NAME)");
   }
   c.use_drop = r.gs.drop_given && !ignore_drop;
   c.analysis.check_drag = !r.gs.Given("effects.drag");  // drag off by the user's choice

@@ -83,9 +83,10 @@ struct TruthOptions {
   bool IsValid(std::string* error) const;
 };
 
-// Hertz contact duration of the ball on a rigid-backed flat of the surface material at impact
-// speed v: tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5) (docs/physics.md §2; Johnson, Contact Mechanics,
-// eq. 11.24), m* = m, R* = R, 1/E* = (1-nu_b^2)/E_b + (1-nu_s^2)/E_s.
+// Hertz contact duration of the ball on a flat of the surface material at impact speed v:
+// HertzContactTime (kinematics.hpp), tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5) (docs/physics.md §2.3;
+// Johnson, Contact Mechanics, eq. 11.24), R* = R, 1/E* = (1-nu_b^2)/E_b + (1-nu_s^2)/E_s, m* = m
+// (the reduced mass m M / (m + M) with effects.surface_compliance and a plate of mass M).
 // Throws Error(kBadScene) when a material has no Young's modulus.
 double HertzContactDuration(const Scene& scene, double v_m_s);
 

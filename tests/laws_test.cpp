@@ -239,7 +239,7 @@ TEST(HertzViscoelastic, MasterCurveMatchesIntegrationAndFallsWithSpeed) {
   }
 }
 
-TEST(HertzViscoelastic, SchwagerPoschelSeriesAtLowSpeed) {
+TEST(HertzViscoelastic, RamirezSeriesAtLowSpeed) {
   // b = beta v^(1/5), beta = 1.5 A (k/m*)^(2/5); the two-term series must be accurate to a
   // small fraction of its own b^2 term, and the one-term series must not be.
   const ContactBody body = BodyFromScene(SteelScene());
@@ -251,9 +251,9 @@ TEST(HertzViscoelastic, SchwagerPoschelSeriesAtLowSpeed) {
     ASSERT_LT(b, 0.01);
     const double e = oracle::Integrate(*law, p, body, v).restitution;
     const double series = laws::ViscoelasticSeriesRestitution(b);
-    const double c2_term = laws::kSchwagerPoschelC2 * b * b;
+    const double c2_term = laws::kRamirezC2 * b * b;
     EXPECT_LT(std::abs(e - series), 0.05 * c2_term) << "v " << v << " b " << b;
-    EXPECT_GT(std::abs(e - (1.0 - laws::kSchwagerPoschelC1 * b)), 0.5 * c2_term);
+    EXPECT_GT(std::abs(e - (1.0 - laws::kRamirezC1 * b)), 0.5 * c2_term);
   }
 }
 

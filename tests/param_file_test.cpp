@@ -204,7 +204,9 @@ TEST(ParamFile, RefusesToOverwriteInputsOrExistingFilesWithoutForce) {
     ADD_FAILURE();
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kOutput);
-    EXPECT_NE(std::string(e.what()).find("--force"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("exists and WriteOptions::force is false"),
+              std::string::npos)
+        << e.what();
   }
   EXPECT_EQ(ReadText(dir / "params.json"), "old");
   WriteParamFile(dir / "params.json", j, {.force = true, .inputs = {}});

@@ -11,12 +11,15 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/physics/bundled_scenes.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 
@@ -658,6 +661,50 @@ TEST(Presets, AllRenderAndDescribeWhatTheySay) {
     FAIL();
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kBadParameter);
+  }
+}
+
+// The presets' scenes come from data/scenes/*.toml (the one source of their ball, surface, drop
+// and effects): each preset's scene equals its file read from the source tree, the embedded copy
+// is that file byte for byte, and every file in data/scenes is a preset's scene or an example
+// that README.md names (no orphan scene that nothing uses or documents).
+TEST(Presets, SceneIsItsBundledTomlFile) {
+  const std::filesystem::path dir = std::filesystem::path(BOUNCECAL_SOURCE_DIR) / "data/scenes";
+  std::set<std::string> preset_files;
+  for (const std::string& name : SynthPresetNames()) {
+    SCOPED_TRACE(name);
+    const std::string file = SynthPresetSceneFile(name);
+    preset_files.insert(file);
+    Scene from_disk = LoadSceneFile((dir / (file + ".toml")).string());
+    from_disk.source.clear();  // a preset's scene has no source (not a file the user gave)
+    EXPECT_EQ(SynthPreset(name).scene, from_disk);
+  }
+  EXPECT_EQ(SynthPresetSceneFile("two-drops"), "steel-copper");
+  EXPECT_EQ(SynthPreset("pingpong-wood").scene.drop.height_m, 0.30);  // a value from the file
+
+  std::ifstream readme_in(std::string(BOUNCECAL_SOURCE_DIR) + "/README.md");
+  const std::string readme((std::istreambuf_iterator<char>(readme_in)), {});
+  std::set<std::string> on_disk;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".toml") continue;
+    const std::string name = entry.path().stem().string();
+    on_disk.insert(name);
+    SCOPED_TRACE(name);
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(BundledSceneText(name), text);
+    EXPECT_TRUE(preset_files.count(name) > 0 ||
+                readme.find("data/scenes/" + name + ".toml") != std::string::npos)
+        << "data/scenes/" << name << ".toml is neither a preset's scene nor named in README.md";
+  }
+  const std::vector<std::string> bundled = BundledSceneNames();
+  EXPECT_EQ(std::set<std::string>(bundled.begin(), bundled.end()), on_disk);
+  try {
+    BundledScene("tuba");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kBadParameter);
+    EXPECT_NE(std::string(e.what()).find("known: compliant-plate"), std::string::npos) << e.what();
   }
 }
 

@@ -639,8 +639,7 @@ int main(int argc, char** argv) {
   }
   const std::string& dump_file = dump;
 
-  const std::vector<std::string> presets = {"steel-copper", "glass-glass", "pingpong-wood",
-                                            "rubber-wood",  "phone-16k",   "two-drops"};
+  const std::vector<std::string> presets = SynthPresetNames();
   const std::vector<Corpus> corpus = RenderCorpus(presets, seeds, dir, !keep.empty());
 
   // 1. Accuracy per preset, bouncecal vs aubio.

@@ -8,9 +8,9 @@
 #include <pybind11/pybind11.h>
 #include <nlohmann/json.hpp>
 
+#include "bouncecal/acoustic/drop_input.hpp"
 #include "bouncecal/core/error.hpp"
-#include "detect_flags.hpp"
-#include "scene_flags.hpp"
+#include "bouncecal/io/given_scene.hpp"
 
 namespace bouncecal::python {
 
@@ -51,11 +51,15 @@ class Options {
   py::dict d_;
 };
 
-// --scene FILE (or the TOML text of a scene dict) and the scene flags; with_law adds law, set,
-// expression.
-cli::SceneFlags TakeSceneFlags(Options& o, bool with_law);
-// channel, start, end, sequence, min_snr_db, impacts.
-cli::DetectFlags TakeDetectFlags(Options& o);
+// scene (a file, or the TOML text of a scene dict) and the scene keywords (height, mass, ...:
+// the SceneOverrides fields); with_law adds law, set, expression.
+SceneOverrides TakeSceneOverrides(Options& o, bool with_law);
+// channel, start, end, sequence, min_snr_db, impacts -> the drop input's options. Throws
+// Error(kUsage) for an invalid value (before any work).
+DropInputOptions TakeDropInputOptions(Options& o);
+// A library message with the keyword names of this module ("SceneOverrides::height_m" ->
+// "height", "WriteOptions::force" -> "force").
+std::string KeywordText(const std::string& message);
 
 // laws, simulate, export.
 void BindTools(py::module_& m);

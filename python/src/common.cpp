@@ -1,5 +1,6 @@
 // JSON -> Python, the error translator and the option readers of the bindings (bindings.hpp).
 #include <exception>
+#include <string>
 
 #include <Python.h>
 #include <pybind11/stl.h>
@@ -45,7 +46,7 @@ namespace {
 // The exception object is made by the package (one class per code) and raised as it is.
 void Raise(const Error& e, const py::object& result) {
   py::object make = py::module_::import("bouncecal._errors").attr("_make_error");
-  py::object exc = make(ErrorCodeName(e.code()), e.exit_code(), e.what(), result);
+  py::object exc = make(ErrorCodeName(e.code()), e.exit_code(), KeywordText(e.what()), result);
   PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(exc.ptr())), exc.ptr());
 }
 
@@ -111,8 +112,8 @@ void Options::Finish(const char* function) {
   throw Error(ErrorCode::kUsage, std::string(function) + ": unknown option(s) " + names);
 }
 
-cli::SceneFlags TakeSceneFlags(Options& o, bool with_law) {
-  cli::SceneFlags f;
+SceneOverrides TakeSceneOverrides(Options& o, bool with_law) {
+  SceneOverrides f;
   if (auto v = o.TakeString("scene")) f.scene_file = *v;
   if (auto v = o.TakeString("scene_text")) f.scene_text = *v;
   f.height_m = o.TakeDouble("height");
@@ -134,15 +135,71 @@ cli::SceneFlags TakeSceneFlags(Options& o, bool with_law) {
   return f;
 }
 
-cli::DetectFlags TakeDetectFlags(Options& o) {
-  cli::DetectFlags f;
-  if (auto v = o.TakeString("channel")) f.channel = *v;
-  f.start_s = o.TakeDouble("start");
-  f.end_s = o.TakeDouble("end");
-  if (auto v = o.TakeString("sequence")) f.sequence = *v;
-  f.min_snr_db = o.TakeDouble("min_snr_db");
-  f.impacts = o.TakeStrings("impacts");
+DropInputOptions TakeDropInputOptions(Options& o) {
+  DropInputOptions f;
+  f.detect.channel = ParseChannelSelection(o.TakeString("channel").value_or("auto"));
+  if (auto v = o.TakeDouble("start")) f.detect.start_s = *v;
+  f.detect.end_s = o.TakeDouble("end");
+  if (auto v = o.TakeDouble("min_snr_db")) f.detect.min_snr_db = *v;
+  f.sequence = ParseSequenceChoice(o.TakeString("sequence").value_or("main"));
+  f.impacts_files = o.TakeStrings("impacts");
+  std::string why;
+  if (!f.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
   return f;
+}
+
+namespace {
+
+struct Keyword {
+  const char* library;
+  const char* keyword;
+};
+// Field names -> keywords, each replaced as a whole name (SceneOverrides::law is not
+// SceneOverrides::law_sets).
+constexpr Keyword kKeywords[] = {
+    {"SceneOverrides::height_m", "height"},
+    {"SceneOverrides::height_sigma_m", "height_sigma"},
+    {"SceneOverrides::impact_speed_m_s", "impact_speed"},
+    {"SceneOverrides::diameter_m", "diameter"},
+    {"SceneOverrides::density_kg_m3", "density"},
+    {"SceneOverrides::mass_kg", "mass"},
+    {"SceneOverrides::material", "material"},
+    {"SceneOverrides::drag", "drag"},
+    {"SceneOverrides::g_m_s2", "g"},
+    {"SceneOverrides::law", "law"},
+    {"SceneOverrides::law_sets", "set"},
+    {"SceneOverrides::expression", "expression"},
+    {"DropInputOptions::impacts_files", "impacts"},
+    {"DetectOptions::start_s", "start"},
+    {"DetectOptions::end_s", "end"},
+    {"DetectOptions::min_snr_db", "min_snr_db"},
+    {"ExportOptions::force", "force"},
+    {"ExportOptions::allow_approximation", "allow_approximation"},
+    {"WriteOptions::force", "force"},
+};
+
+bool NameChar(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+}
+
+}  // namespace
+
+std::string KeywordText(const std::string& message) {
+  std::string m = message;
+  for (const Keyword& k : kKeywords) {
+    const std::string from = k.library, to = k.keyword;
+    std::size_t at = m.find(from);
+    while (at != std::string::npos) {
+      const std::size_t end = at + from.size();
+      if (end < m.size() && NameChar(m[end])) {
+        at = m.find(from, end);
+        continue;
+      }
+      m.replace(at, from.size(), to);
+      at = m.find(from, at + to.size());
+    }
+  }
+  return m;
 }
 
 }  // namespace bouncecal::python

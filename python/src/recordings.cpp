@@ -89,7 +89,7 @@ nlohmann::json EachInput(const std::vector<std::pair<std::string, std::string>>&
 // `bouncecal detect FILE... --json`.
 py::object DetectBinding(const std::vector<std::string>& files, const py::dict& options) {
   Options o(options);
-  const cli::DetectFlags flags = TakeDetectFlags(o);
+  const DropInputOptions flags = TakeDropInputOptions(o);
   const double hop_ms = o.TakeDouble("hop_ms").value_or(0.0);
   const bool no_refine = o.TakeFlag("no_refine");
   o.Finish("detect");
@@ -97,27 +97,26 @@ py::object DetectBinding(const std::vector<std::string>& files, const py::dict& 
     char buf[64];
     std::snprintf(buf, sizeof buf, "%g", hop_ms);
     throw Error(ErrorCode::kUsage,
-                std::string("--hop-ms ") + buf + ": must be in [0, 50] (0 = auto)");
+                std::string("hop_ms ") + buf + ": must be in [0, 50] (0 = auto)");
   }
-  cli::MakeDetectOptions(flags);  // option errors before any work
   py::gil_scoped_release release;
-  const auto inputs = cli::PairInputs(files, flags);
+  const auto inputs = PairInputs(files, flags);
   const nlohmann::json result = EachInput(
       inputs, /*unwrap_single=*/true,
       [&](const std::string& rec, const std::string& imp, const std::string& name,
           nlohmann::json* out) {
         std::optional<Audio> audio;
         if (!rec.empty()) audio = ReadAudio(rec);
-        cli::LoadedRecording l;
+        LoadedRecording l;
         if (imp.empty()) {
-          DetectOptions d = cli::MakeDetectOptions(flags);
+          DetectOptions d = flags.detect;
           d.hop_s = hop_ms * 1e-3;
           d.refine = !no_refine;
           l.name = name;
           l.result = DetectImpacts(*audio, d);
-          l.chosen = ChooseSequences(l.result.sequences, ParseSequenceChoice(flags.sequence), name);
+          l.chosen = ChooseSequences(l.result.sequences, flags.sequence, name);
         } else {
-          l = cli::LoadRecording(rec, audio ? &*audio : nullptr, imp, flags);
+          l = LoadRecording(rec, audio ? &*audio : nullptr, imp, flags);
         }
         out->push_back(DetectionJson(
             name, l.result, {.chosen = l.chosen, .from_impacts_file = !l.impacts_file.empty()}));
@@ -129,12 +128,12 @@ py::object DetectBinding(const std::vector<std::string>& files, const py::dict& 
 // `bouncecal analyze FILE... --json`.
 py::object AnalyzeBinding(const std::vector<std::string>& files, const py::dict& options) {
   Options o(options);
-  const cli::DetectFlags detect = TakeDetectFlags(o);
-  const cli::SceneFlags scene_flags = TakeSceneFlags(o, /*with_law=*/false);
+  const DropInputOptions detect = TakeDropInputOptions(o);
+  const SceneOverrides scene_flags = TakeSceneOverrides(o, /*with_law=*/false);
   const std::optional<double> contact_time_s = o.TakeDouble("contact_time");
   o.Finish("analyze");
   // The scene first: it is cheap and its errors should not wait for the detector.
-  cli::GivenScene gs = cli::ResolveGivenScene(scene_flags);
+  GivenScene gs = ResolveGivenScene(scene_flags);
   if (contact_time_s) gs.scene.effects.contact_duration = true;  // a given duration is used
   AnalysisOptions aopt;
   aopt.use_drop = gs.drop_given;
@@ -142,16 +141,15 @@ py::object AnalyzeBinding(const std::vector<std::string>& files, const py::dict&
   aopt.check_drag = !gs.Given("effects.drag") && gs.ball_given;
   if (contact_time_s) aopt.contact_time_s = *contact_time_s;
   std::string why;
-  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "--contact-time: " + why);
-  cli::MakeDetectOptions(detect);  // option errors before any work
+  if (!aopt.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "contact_time: " + why);
   py::gil_scoped_release release;
-  const auto inputs = cli::PairInputs(files, detect);
-  const nlohmann::json assumed = cli::AssumedJson(cli::AssumedValues(gs, false));
+  const auto inputs = PairInputs(files, detect);
+  const nlohmann::json assumed = AssumedJson(AssumedValues(gs, false));
   const nlohmann::json result = EachInput(
       inputs, /*unwrap_single=*/true,
       [&](const std::string& rec, const std::string& imp, const std::string& name,
           nlohmann::json* out) {
-        const cli::LoadedRecording loaded = cli::LoadRecording(rec, nullptr, imp, detect);
+        const LoadedRecording loaded = LoadRecording(rec, nullptr, imp, detect);
         for (int s : loaded.chosen) {
           const DetectionResult& det = loaded.result;
           Analysis an;
@@ -178,8 +176,8 @@ py::object AnalyzeBinding(const std::vector<std::string>& files, const py::dict&
 // The calibrate options that are not scene or detection options.
 struct CalibrateRun {
   std::vector<std::string> files;
-  cli::DetectFlags detect;
-  cli::GivenScene gs;
+  DropInputOptions detect;
+  GivenScene gs;
   CalibrationOptions options;
   bool compare_all = false;  // law = "all"
   bool batch = false;
@@ -199,8 +197,8 @@ std::string Precision(double v, int digits) {
 CalibrateRun TakeCalibrateRun(const std::vector<std::string>& files, Options& o) {
   CalibrateRun r;
   r.files = files;
-  r.detect = TakeDetectFlags(o);
-  cli::SceneFlags sf = TakeSceneFlags(o, /*with_law=*/true);
+  r.detect = TakeDropInputOptions(o);
+  SceneOverrides sf = TakeSceneOverrides(o, /*with_law=*/true);
   r.compare_all = sf.law == "all";
   if (r.compare_all) sf.law.clear();
   CalibrationOptions& c = r.options;
@@ -221,19 +219,19 @@ CalibrateRun TakeCalibrateRun(const std::vector<std::string>& files, Options& o)
   r.force = o.TakeFlag("force");
   o.Finish("calibrate");
   if (r.jobs < 1 || r.jobs > 256) {
-    throw Error(ErrorCode::kUsage, "--jobs " + std::to_string(r.jobs) + ": expected 1..256");
+    throw Error(ErrorCode::kUsage, "jobs " + std::to_string(r.jobs) + ": expected 1..256");
   }
   if (r.compare_all && r.batch) {
-    throw Error(ErrorCode::kUsage, "--law all cannot be combined with --batch");
+    throw Error(ErrorCode::kUsage, "law=\"all\" cannot be combined with batch=True");
   }
-  r.gs = cli::ResolveGivenScene(sf);
+  r.gs = ResolveGivenScene(sf);
   if (!r.gs.ball_given) {
     const bool diameter = r.gs.Given("ball.diameter_m");
     throw Error(ErrorCode::kBadScene,
                 std::string("calibrate: the ball's ") + (diameter ? "mass" : "size and mass") +
                     " are not given (they enter the contact law, its default stiffness and the "
-                    "drag): give --scene FILE with a [ball] table, or --diameter M with --mass "
-                    "KG (or --density KG_M3, or --material NAME)");
+                    "drag): give scene=FILE with a [ball] table, or diameter=M with mass=KG "
+                    "(or density=KG_M3, or material=NAME)");
   }
   c.use_drop = r.gs.drop_given && !ignore_drop;
   c.analysis.check_drag = !r.gs.Given("effects.drag");  // drag off by the user's choice
@@ -242,10 +240,10 @@ CalibrateRun TakeCalibrateRun(const std::vector<std::string>& files, Options& o)
   return r;
 }
 
-std::vector<CalibrationInput> DropsOf(const std::pair<std::string, std::string>& input,
-                                      const cli::DetectFlags& flags) {
+std::vector<CalibrationInput> InputsOf(const std::pair<std::string, std::string>& input,
+                                       const DropInputOptions& options) {
   std::vector<CalibrationInput> out;
-  for (cli::Drop& d : cli::DropsOf(input.first, input.second, flags))
+  for (RecordingDrop& d : DropsOf(input.first, input.second, options))
     out.push_back({d.name, std::move(d.sequence)});
   return out;
 }
@@ -272,7 +270,7 @@ nlohmann::json CalibrateBatch(const CalibrateRun& r,
   std::vector<std::optional<Error>> errors(n);
   Pool(n, r.jobs, [&](std::size_t i) {
     try {
-      fits[i] = Calibrate(DropsOf(inputs[i], r.detect), r.gs.scene, r.options);
+      fits[i] = Calibrate(InputsOf(inputs[i], r.detect), r.gs.scene, r.options);
     } catch (const Error& e) {
       errors[i] = e;
     } catch (const std::exception& e) {
@@ -306,7 +304,7 @@ nlohmann::json CalibrateAll(const CalibrateRun& r, const std::vector<Calibration
   const Provenance prov = MakeProvenance(r.files);
   const nlohmann::json options_json = OptionsJson(r.options);
   nlohmann::json doc =
-      LawComparisonJson(rows, prov, options_json, cli::AssumedJson(cli::AssumedValues(r.gs, true)));
+      LawComparisonJson(rows, prov, options_json, AssumedJson(AssumedValues(r.gs, true)));
   if (rows.empty() || !rows.front().adequate) {
     throw ErrorWithResult(
         ErrorCode::kFitFailed,
@@ -327,7 +325,7 @@ nlohmann::json CalibrateOne(const CalibrateRun& r, const std::vector<Calibration
   Calibration c = Calibrate(inputs, scene, r.options);
   const std::vector<Warning> unit = SceneUnitWarnings(scene, r.options.use_drop);
   c.warnings.insert(c.warnings.begin(), unit.begin(), unit.end());
-  std::vector<cli::Assumed> assumed = cli::AssumedValues(r.gs, true);
+  std::vector<Assumed> assumed = AssumedValues(r.gs, true);
   for (const auto& p : c.parameters) {
     if (p.fixed && !r.gs.Given("law.parameters." + p.name)) {
       assumed.push_back({"law.parameters." + p.name, Precision(p.value, 7) + " " + p.unit,
@@ -335,7 +333,7 @@ nlohmann::json CalibrateOne(const CalibrateRun& r, const std::vector<Calibration
     }
   }
   nlohmann::json doc = CalibrationJson(c, MakeProvenance(r.files), OptionsJson(r.options));
-  doc["assumed"] = cli::AssumedJson(assumed);
+  doc["assumed"] = AssumedJson(assumed);
   // The parameter file records every outcome; the exception tells scripts.
   if (!r.output.empty()) WriteParamFile(r.output, doc, {.force = r.force, .inputs = r.files});
   if (c.outcome != FitOutcome::kConverged) {
@@ -350,9 +348,8 @@ py::object CalibrateBinding(const std::vector<std::string>& files, const py::dic
   Options o(options);
   const CalibrateRun r = TakeCalibrateRun(files, o);
   if (!r.compare_all) CreateLaw(r.gs.scene.law, r.gs.scene);  // unknown law: before any work
-  cli::MakeDetectOptions(r.detect);                           // option errors before any work
   py::gil_scoped_release release;
-  const auto pairs = cli::PairInputs(files, r.detect);
+  const auto pairs = PairInputs(files, r.detect);
   if (!r.output.empty()) CheckOutputPath(r.output, {.force = r.force, .inputs = files});
   nlohmann::json result;
   if (r.batch) {
@@ -363,7 +360,7 @@ py::object CalibrateBinding(const std::vector<std::string>& files, const py::dic
     std::vector<std::optional<Error>> errors(pairs.size());
     Pool(pairs.size(), r.jobs, [&](std::size_t i) {
       try {
-        per[i] = DropsOf(pairs[i], r.detect);
+        per[i] = InputsOf(pairs[i], r.detect);
       } catch (const Error& e) {
         errors[i] = e;
       }

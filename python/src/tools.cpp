@@ -44,8 +44,8 @@ py::object Laws(const py::dict& options) {
 // The scene of simulate: the scene flags, or a parameter file's replay (then no scene flag).
 Scene SimulateScene(Options& o) {
   const std::string params = o.TakeString("params").value_or("");
-  const cli::SceneFlags flags = TakeSceneFlags(o, true);
-  if (params.empty()) return cli::ResolveScene(flags);
+  const SceneOverrides flags = TakeSceneOverrides(o, true);
+  if (params.empty()) return ResolveScene(flags);
   const bool any_scene_option =
       !flags.scene_file.empty() || flags.height_m || flags.height_sigma_m ||
       flags.impact_speed_m_s || flags.diameter_m || flags.density_kg_m3 || flags.mass_kg ||
@@ -53,9 +53,9 @@ Scene SimulateScene(Options& o) {
       flags.g_m_s2 || !flags.law.empty() || !flags.law_sets.empty() || !flags.expression.empty();
   if (any_scene_option) {
     throw Error(ErrorCode::kUsage,
-                "--params " + params +
-                    ": the file is the whole scene and law; scene and law flags cannot be "
-                    "combined with it (use --max-impacts/--horizon to shorten the run)");
+                "params " + params +
+                    ": the file is the whole scene and law; scene and law options cannot be "
+                    "combined with it (use max_impacts/horizon to shorten the run)");
   }
   return ReplayFromParamFile(ReadParamFile(params), params).scene;
 }
@@ -70,19 +70,19 @@ py::object SimulateBinding(const py::dict& options) {
   o.Finish("simulate");
   if (horizon_s) {
     if (!(*horizon_s > 0.0) || !std::isfinite(*horizon_s)) {
-      throw Error(ErrorCode::kUsage, "--horizon: must be a positive number of seconds");
+      throw Error(ErrorCode::kUsage, "horizon: must be a positive number of seconds");
     }
     scene.limits.horizon_s = *horizon_s;
   }
   if (max_impacts) {
-    if (*max_impacts < 1) throw Error(ErrorCode::kUsage, "--max-impacts: must be >= 1");
+    if (*max_impacts < 1) throw Error(ErrorCode::kUsage, "max_impacts: must be >= 1");
     scene.limits.max_impacts = *max_impacts;
   }
   SimulatorOptions sim_options;
   if (rtol) sim_options.rel_tolerance = *rtol;
   sim_options.use_closed_form = !integrate;
   std::string why;
-  if (!sim_options.IsValid(&why)) throw Error(ErrorCode::kUsage, "--rtol: " + why);
+  if (!sim_options.IsValid(&why)) throw Error(ErrorCode::kUsage, "rtol: " + why);
   const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
   const std::vector<double> p = law->ParameterValues();
   Simulation sim;
@@ -100,10 +100,10 @@ py::object ExportBinding(const std::string& params, const std::string& output,
   const std::string to = o.TakeString("to").value_or("");
   const std::string scene = o.TakeString("scene").value_or("bounce");
   if (!ParseExportTarget(to, &e.target)) {
-    throw Error(ErrorCode::kUsage, "--to " + to + ": expected lammps, liggghts or yade");
+    throw Error(ErrorCode::kUsage, "to " + to + ": expected lammps, liggghts or yade");
   }
   if (!ParseExportScene(scene, &e.scene)) {
-    throw Error(ErrorCode::kUsage, "--scene " + scene + ": expected bounce or packing");
+    throw Error(ErrorCode::kUsage, "scene " + scene + ": expected bounce or packing");
   }
   e.force = o.TakeFlag("force");
   e.allow_approximation = o.TakeFlag("allow_approximation");

@@ -87,7 +87,8 @@ std::vector<RawTime> FromDetectJson(const std::string& path, const nlohmann::jso
     d = &doc[0];
   }
   if (!d->is_object() || !d->contains("sequences") || !(*d)["sequences"].is_array())
-    Bad(path, "", "JSON without a \"sequences\" array: not `bouncecal detect --json` output");
+    Bad(path, "",
+        "JSON without a \"sequences\" array: not a detection (schema bouncecal.detect/1)");
   std::vector<RawTime> out;
   int s = 0;
   for (const auto& q : (*d)["sequences"]) {

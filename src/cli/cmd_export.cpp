@@ -66,21 +66,7 @@ void Run(const ExportFlags& f) {
   o.packing_restitution = f.packing_restitution;
   std::string why;
   if (!o.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
-  ExportResult r;
-  try {
-    r = ExportDeck(f.params, f.out_dir, o);
-  } catch (const Error& e) {
-    // Name the command-line flags for the library's option names.
-    std::string m = e.what();
-    auto swap = [&m](const std::string& from, const std::string& to) {
-      const size_t at = m.find(from);
-      if (at != std::string::npos) m.replace(at, from.size(), to);
-    };
-    swap("(allow_approximation accepts it)", "(--allow-approximation accepts it)");
-    swap("(force overrides)", "(--force overrides)");
-    swap("(force replaces its files)", "(--force replaces its files)");
-    throw Error(e.code(), m);
-  }
+  const ExportResult r = ExportDeck(f.params, f.out_dir, o);  // main() names the flags
   if (f.json) {
     std::cout << DumpJson(ExportResultJson(r), 2) << "\n";
   } else {

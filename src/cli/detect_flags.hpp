@@ -7,7 +7,9 @@
 //   DetectFlags flags;  AddDetectFlags(sub, &flags);          // declare
 //   for (const Drop& d : LoadDrops(files, flags)) ...          // one per chosen sequence
 //
-// Library messages name Options fields; the flag checks here name the flags.
+// The flags fill DropInputOptions (bouncecal/acoustic/drop_input.hpp), which does the work;
+// the flag checks here name the flags, and the library's messages (naming Options fields) are
+// mapped to the flags by FlagText (output.hpp).
 #pragma once
 
 #include <optional>
@@ -18,7 +20,7 @@
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
-#include "bouncecal/core/warning.hpp"
+#include "bouncecal/acoustic/drop_input.hpp"
 
 namespace bouncecal::cli {
 
@@ -34,36 +36,19 @@ struct DetectFlags {
 // Adds --channel --start --end --sequence --min-snr-db --impacts to a subcommand.
 void AddDetectFlags(CLI::App* sub, DetectFlags* flags);
 
-// The detector's options from the flags (the other DetectOptions fields keep their defaults).
+// The library's options from the flags (the other DetectOptions fields keep their defaults).
 // Throws Error(kUsage) naming the flag.
 DetectOptions MakeDetectOptions(const DetectFlags& flags);
+DropInputOptions MakeDropInputOptions(const DetectFlags& flags);
 
-// One recording's sequences: detected, or read from its --impacts file.
-struct LoadedRecording {
-  std::string name;          // the recording (or the impacts file when there is none)
-  DetectionResult result;    // sequences (detected or from the file), audio info, warnings
-  std::vector<int> chosen;   // --sequence: indices into result.sequences
-  std::string impacts_file;  // non-empty when the times came from a file
-};
-
-// `audio`: the recording already read (or null: read here when needed). Throws Error.
+// The library's drop input (bouncecal/acoustic/drop_input.hpp) with the options from the flags
+// and its messages in flag names (FlagText).
+using Drop = RecordingDrop;
 LoadedRecording LoadRecording(const std::string& recording, const Audio* audio,
                               const std::string& impacts_file, const DetectFlags& flags);
-
-// Pairs the recordings with the --impacts files (see above) and loads each. Throws Error(kUsage)
-// when the counts do not pair up.
 std::vector<std::pair<std::string, std::string>> PairInputs(
     const std::vector<std::string>& recordings, const DetectFlags& flags);
-
-// One drop for analyze/calibrate: a chosen sequence of a recording, named "FILE" or, when
-// --sequence gives several of one recording, "FILE#N" (N its sequence index).
-struct Drop {
-  std::string name;
-  Sequence sequence;
-  std::vector<Warning> warnings;  // the recording's detection warnings (on its first drop only)
-};
 std::vector<Drop> LoadDrops(const std::vector<std::string>& recordings, const DetectFlags& flags);
-// The drops of one recording / --impacts pair (an element of PairInputs).
 std::vector<Drop> DropsOf(const std::string& recording, const std::string& impacts_file,
                           const DetectFlags& flags);
 

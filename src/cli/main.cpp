@@ -8,6 +8,7 @@
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
 #include "commands.hpp"
+#include "output.hpp"
 
 namespace {
 
@@ -50,7 +51,7 @@ int main(int argc, char** argv) {
     return static_cast<int>(bouncecal::ErrorCode::kUsage);
   } catch (const bouncecal::Error& e) {
     std::fflush(stdout);
-    std::fprintf(stderr, "bouncecal: %s\n", e.what());
+    std::fprintf(stderr, "bouncecal: %s\n", bouncecal::cli::FlagText(e.what()).c_str());
     return e.exit_code();
   } catch (const std::exception& e) {
     std::fflush(stdout);

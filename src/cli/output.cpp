@@ -28,4 +28,67 @@ int DefaultJobs() {
   return static_cast<int>(std::clamp(n == 0 ? 1u : n, 1u, 8u));
 }
 
+namespace {
+
+// Library text -> command-line text. Phrases first (whole wordings the flag changes), then
+// field names, each replaced only as a whole name (SceneOverrides::law is not
+// SceneOverrides::law_sets).
+struct FlagName {
+  const char* library;
+  const char* cli;
+};
+constexpr FlagName kPhrases[] = {
+    {"exists and WriteOptions::force is false (set it to replace the file)",
+     "exists; use --force to replace it"},
+    {"scene from overrides: ", "scene from flags: "},
+    {" (after the overrides)", " (after command-line overrides)"},
+};
+constexpr FlagName kFields[] = {
+    {"SceneOverrides::height_m", "--height"},
+    {"SceneOverrides::height_sigma_m", "--height-sigma"},
+    {"SceneOverrides::impact_speed_m_s", "--impact-speed"},
+    {"SceneOverrides::diameter_m", "--diameter"},
+    {"SceneOverrides::density_kg_m3", "--density"},
+    {"SceneOverrides::mass_kg", "--mass"},
+    {"SceneOverrides::material", "--material"},
+    {"SceneOverrides::drag", "--drag"},
+    {"SceneOverrides::g_m_s2", "--g"},
+    {"SceneOverrides::law", "--law"},
+    {"SceneOverrides::law_sets", "--set"},
+    {"SceneOverrides::expression", "--expression"},
+    {"DropInputOptions::impacts_files", "--impacts"},
+    {"ExportOptions::force", "--force"},
+    {"ExportOptions::allow_approximation", "--allow-approximation"},
+    {"WriteOptions::force", "--force"},
+};
+
+bool NameChar(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+}
+
+}  // namespace
+
+std::string FlagText(const std::string& message) {
+  std::string m = message;
+  for (const FlagName& p : kPhrases) {
+    const std::string from = p.library, to = p.cli;
+    for (std::size_t at = m.find(from); at != std::string::npos; at = m.find(from, at + to.size()))
+      m.replace(at, from.size(), to);
+  }
+  for (const FlagName& f : kFields) {
+    const std::string from = f.library, to = f.cli;
+    std::size_t at = m.find(from);
+    while (at != std::string::npos) {
+      const std::size_t end = at + from.size();
+      if (end < m.size() && NameChar(m[end])) {
+        at = m.find(from, end);
+        continue;
+      }
+      m.replace(at, from.size(), to);
+      at = m.find(from, at + to.size());
+    }
+  }
+  return m;
+}
+
 }  // namespace bouncecal::cli

@@ -2,10 +2,12 @@
 // WarningsJson, CsvNumber, CsvField) are the library's schema (bouncecal/io/schema.hpp).
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
 
+#include "bouncecal/core/error.hpp"
 #include "bouncecal/core/warning.hpp"
 #include "bouncecal/io/schema.hpp"
 
@@ -23,5 +25,20 @@ int DefaultJobs();
 
 // "bouncecal: warning [code]: message" on stderr, one line each.
 void PrintWarnings(const std::vector<Warning>& warnings);
+
+// Library messages name Options fields ("SceneOverrides::height_m", "WriteOptions::force"); a
+// user of the command line reads the flags. FlagText rewrites a message with the flag that
+// sets each field named in it ("--height", "use --force to replace it"): one table in
+// output.cpp, applied to every error main() prints and to the per-input errors of batch runs.
+std::string FlagText(const std::string& message);
+// Runs f; an Error it throws comes out with its message in flag names (same code).
+template <class F>
+auto WithFlagText(F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const Error& e) {
+    throw Error(e.code(), FlagText(e.what()));
+  }
+}
 
 }  // namespace bouncecal::cli

@@ -102,7 +102,10 @@ void CheckOutputPath(const std::string& path, const WriteOptions& options) {
       throw Error(ErrorCode::kOutput, path + ": is an input file; refusing to overwrite it");
     }
   }
-  if (!options.force) throw Error(ErrorCode::kOutput, path + ": exists; use --force to replace it");
+  if (!options.force) {
+    throw Error(ErrorCode::kOutput,
+                path + ": exists and WriteOptions::force is false (set it to replace the file)");
+  }
 }
 
 AtomicFile::AtomicFile(const std::string& path, const WriteOptions& options) : path_(path) {

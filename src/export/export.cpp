@@ -94,8 +94,8 @@ void CheckOutcome(const ParamFile& pf, const std::string& path, bool force) {
   throw Error(ErrorCode::kFitFailed,
               path + ": fit.outcome is '" + (pf.outcome.empty() ? "missing" : pf.outcome) +
                   "', not 'converged'" + (message.empty() ? "" : " (" + message + ")") +
-                  ": its parameters may not describe the recording; not exported (force "
-                  "overrides)");
+                  ": its parameters may not describe the recording; not exported "
+                  "(ExportOptions::force overrides)");
 }
 
 // Checks the output directory (run it before any work); true when it already exists.
@@ -106,8 +106,10 @@ bool CheckDirectory(const std::string& dir, bool force) {
       throw Error(ErrorCode::kOutput, dir + ": exists and is not a directory");
     }
     if (!force) {
-      throw Error(ErrorCode::kOutput,
-                  dir + ": output directory exists; not replaced (force replaces its files)");
+      throw Error(
+          ErrorCode::kOutput,
+          dir +
+              ": output directory exists; not replaced (ExportOptions::force replaces its files)");
     }
     return true;
   }
@@ -518,7 +520,7 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
                     " within e error " + Num(options.max_e_error) + ": the closest native law (" +
                     m.native_law + ") is off by " + Num(m.max_e_error) + " over " +
                     Num(speeds.front()) + " .. " + Num(speeds.back()) +
-                    " m/s; not exported (allow_approximation accepts it)");
+                    " m/s; not exported (ExportOptions::allow_approximation accepts it)");
   }
   r.native_law = m.native_law;
   r.kind = m.kind;

@@ -2,12 +2,16 @@
 //
 // Keywords (LIGGGHTS-PUBLIC docs of gran model hooke/stiffness, hertz, hertz/stiffness; the
 // per-type-pair coefficients are `fix property/global NAME peratomtypepair 2 ...`):
-//   model hooke/stiffness:  F = k_n d - m* gamman v_n        (absolute_damping off: gamman 1/s)
-//   model hertz/stiffness:  F = k_n sqrt(R d) d - gamman sqrt(R d) m* v_n   (k_n Pa, gamman 1/(m
-//   s)) model hertz:            F = 4/3 Y* sqrt(R d) d - 2 sqrt(5/6) beta sqrt(2 Y* sqrt(R d) m*)
-//   v_n,
-//                           beta = ln e / sqrt(ln^2 e + pi^2), Y* from youngsModulus and
-//                           poissonsRatio of both types: Tsuji's form with alpha = sqrt(5)(-beta)
+//   model hooke/stiffness: F = k_n d - m* gamman v_n   (absolute_damping off: gamman 1/s)
+//   model hertz/stiffness: F = k_n sqrt(R d) d - gamman sqrt(R d) m* v_n
+//                          (k_n Pa, gamman 1/(m s))
+//   model hertz:           F = 4/3 Y* sqrt(R d) d - 2 sqrt(5/6) beta sqrt(2 Y* sqrt(R d) m*) v_n,
+//                          beta = ln e / sqrt(ln^2 e + pi^2), Y* from youngsModulus and
+//                          poissonsRatio of both types: Tsuji's form (Tsuji et al., Powder
+//                          Technol. 71 (1992) 239) with alpha = sqrt(5)(-beta). This beta(e) is the
+//                          linear spring-dashpot's; for the Hertz spring it is approximate (Antypov
+//                          & Elliott, EPL 94 (2011) 50004), hence the compensation in mapping.cpp
+//                          (docs/physics.md §10.2).
 // Against a wall (fix wall/gran ... primitive) R* = R and m* = m. `units si` needs
 // `hard_particles yes` for Young's moduli above 1 GPa. Type 1: the ball(s); type 2: the walls.
 #include <cmath>

@@ -16,6 +16,7 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/user_text.hpp"
+#include "bouncecal/physics/bundled_scenes.hpp"
 #include "bouncecal/physics/flight.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
@@ -887,19 +888,53 @@ bool SynthSpec::IsValid(std::string* error) const {
   return true;
 }
 
+namespace {
+
+// Each preset's scene file in data/scenes/ (bundled_scenes.hpp): the one source of its ball,
+// surface, drop and effects. What stays here is the rest of the recipe: e(v), the truth
+// options, the render settings and the drop placement.
+struct PresetRow {
+  const char* name;
+  const char* scene_file;  // data/scenes/<scene_file>.toml
+};
+constexpr PresetRow kPresets[] = {
+    {"steel-copper", "steel-copper"},   {"glass-glass", "glass-glass"},
+    {"pingpong-wood", "pingpong-wood"}, {"rubber-wood", "rubber-wood"},
+    {"phone-16k", "phone-16k"},         {"two-drops", "steel-copper"},
+};
+
+// A preset's scene is not a file the user gave: its source stays empty, as for flags.
+Scene PresetScene(const std::string& scene_file) {
+  Scene scene = BundledScene(scene_file);
+  scene.source.clear();
+  return scene;
+}
+
+}  // namespace
+
 std::vector<std::string> SynthPresetNames() {
-  return {"steel-copper", "glass-glass", "pingpong-wood", "rubber-wood", "phone-16k", "two-drops"};
+  std::vector<std::string> names;
+  for (const PresetRow& row : kPresets) names.emplace_back(row.name);
+  return names;
+}
+
+std::string SynthPresetSceneFile(const std::string& name) {
+  for (const PresetRow& row : kPresets) {
+    if (name == row.name) return row.scene_file;
+  }
+  std::string known;
+  for (const auto& n : SynthPresetNames()) known += (known.empty() ? "" : ", ") + n;
+  throw Error(ErrorCode::kBadParameter,
+              "synth preset '" + Abbreviate(name) + "': unknown (known: " + known + ")");
 }
 
 SynthSpec SynthPreset(const std::string& name) {
   SynthSpec s;
   s.name = name;
+  s.scene = PresetScene(SynthPresetSceneFile(name));  // throws for an unknown name
   s.render.seed = 1;
   if (name == "steel-copper" || name == "two-drops") {
-    // Seed 002's experiment: 1 cm steel ball (7800 kg/m^3) from 0.2 m on a copper dish, 48 kHz.
-    s.scene = Scene{};
-    s.scene.ball.material = "steel";
-    s.scene.surface.material = "copper";
+    // Seed 002's experiment (data/scenes/steel-copper.toml) heard at 48 kHz.
     s.restitution = RestitutionModel::PowerLaw(0.935, 0.0075, 1.0);  // 0.92 at 2 m/s
     s.render.sample_rate_hz = 48000;
     s.render.plate_modes = PlateModes("copper-dish");
@@ -920,12 +955,6 @@ SynthSpec SynthPreset(const std::string& name) {
     return s;
   }
   if (name == "glass-glass") {
-    s.scene = Scene{};
-    s.scene.ball.diameter_m = 0.016;  // a glass marble
-    s.scene.ball.material = "glass";
-    s.scene.ball.density_kg_m3 = 2500.0;
-    s.scene.surface.material = "glass";
-    s.scene.drop.height_m = 0.15;
     s.restitution = RestitutionModel::PowerLaw(0.955, 0.01, 1.0);
     s.render.sample_rate_hz = 96000;
     s.render.plate_modes = PlateModes("glass");
@@ -939,14 +968,6 @@ SynthSpec SynthPreset(const std::string& name) {
     return s;
   }
   if (name == "pingpong-wood") {
-    s.scene = Scene{};
-    s.scene.ball.diameter_m = 0.040;
-    s.scene.ball.mass_kg = 0.0027;
-    s.scene.ball.density_kg_m3.reset();
-    s.scene.ball.material = "pingpong";
-    s.scene.surface.material = "wood";
-    s.scene.drop.height_m = 0.30;
-    s.scene.effects.drag = DragModel::kQuadratic;
     s.restitution = RestitutionModel::Constant(0.90);
     s.truth.contact_s = 2.5e-4;  // thin shell: much longer than Hertz for a solid sphere
     s.render.sample_rate_hz = 44100;
@@ -964,13 +985,6 @@ SynthSpec SynthPreset(const std::string& name) {
     return s;
   }
   if (name == "rubber-wood") {
-    s.scene = Scene{};
-    s.scene.ball.diameter_m = 0.030;
-    s.scene.ball.material = "rubber";
-    s.scene.ball.density_kg_m3 = 1150.0;
-    s.scene.surface.material = "wood";
-    s.scene.drop.height_m = 0.5;
-    s.scene.effects.contact_duration = true;
     s.restitution = RestitutionModel::PowerLaw(0.90, 0.012, 1.0);
     s.truth.contact_s = 1.4e-3;
     s.render.sample_rate_hz = 44100;
@@ -985,12 +999,6 @@ SynthSpec SynthPreset(const std::string& name) {
   }
   if (name == "phone-16k") {
     // A phone on the table: glass marble on wood, 16 kHz, noisy, hum, clipped, stray clicks.
-    s.scene = Scene{};
-    s.scene.ball.diameter_m = 0.016;
-    s.scene.ball.material = "glass";
-    s.scene.ball.density_kg_m3 = 2500.0;
-    s.scene.surface.material = "wood";
-    s.scene.drop.height_m = 0.25;
     s.restitution = RestitutionModel::Constant(0.85);
     s.truth.min_interval_s = 0.004;
     s.render.sample_rate_hz = 16000;
@@ -1010,10 +1018,7 @@ SynthSpec SynthPreset(const std::string& name) {
     s.drops = {SynthDrop{0.9, std::nullopt}};
     return s;
   }
-  std::string known;
-  for (const auto& n : SynthPresetNames()) known += (known.empty() ? "" : ", ") + n;
-  throw Error(ErrorCode::kBadParameter,
-              "synth preset '" + Abbreviate(name) + "': unknown (known: " + known + ")");
+  throw Error(ErrorCode::kInternal, "synth preset '" + name + "': in kPresets but no recipe");
 }
 
 const char* TruthSourceName(TruthSource s) {

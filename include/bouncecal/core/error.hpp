@@ -24,10 +24,10 @@ enum class ErrorCode : int {
   kBadSamples = 5,    // NaN or Inf samples
   kSilence = 6,       // the recording is silent (all samples at or below the noise floor)
   kNoBounces = 7,     // no usable bounce sequence (noise only, a single impact, ...)
-  kBadScene = 8,      // malformed scene or --impacts file, unknown key, bad or conflicting values
+  kBadScene = 8,      // malformed scene or impacts file, unknown key, bad or conflicting values
   kBadParameter = 9,  // unknown law/parameter, out-of-range or non-finite value
   kFitFailed = 10,    // the fit failed: no usable result (fit outcome "failed")
-  kOutput = 11,       // output path unusable (missing directory, exists without --force, ...)
+  kOutput = 11,       // output path unusable (missing directory, exists without force, ...)
   kSomeFailed = 12,   // batch mode: at least one input failed, the others were processed
   // Fit outcomes other than "converged" (calibrate.hpp). The parameter file is still written
   // and records the outcome; these codes keep scripts from taking it for a success.

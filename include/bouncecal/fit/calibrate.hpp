@@ -194,9 +194,11 @@ struct Calibration {
   double trend_chi2 = 0.0;    // lack-of-fit statistic (residual trend with speed), trend_dof
   int trend_dof = 0;
   double neg_log_likelihood = 0.0;  // Gaussian -log L at the optimum
-  double aic = 0.0, bic = 0.0;      // 2 nll + 2 k, 2 nll + k ln n (k: law parameters + sigma_s)
-  int starts = 0;                   // start points tried
-  int starts_reached_best = 0;      // of which ended at the best fit
+  // 2 nll + 2 k and 2 nll + k ln n (docs/physics.md §9.4), k = num_free (the fitted law
+  // parameters and the trajectory's nuisances) + 1 for the scatter when it is estimated.
+  double aic = 0.0, bic = 0.0;
+  int starts = 0;               // start points tried
+  int starts_reached_best = 0;  // of which ended at the best fit
   int iterations = 0;
   long simulations = 0;  // simulator calls (sequences or contacts)
   double solve_time_s = 0.0;

@@ -113,9 +113,10 @@ struct Analysis {
   std::vector<Warning> warnings;  // coded: intervals that could not be used, e > 1, ...
 };
 
-// Hertz contact duration of the scene's ball on its surface at impact speed v (docs/physics.md §2;
-// Johnson, Contact Mechanics, eq. 11.24): tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5), m* = m,
-// R* = R (ball on a massive flat plate), 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2.
+// Hertz contact duration of the scene's ball on its surface at impact speed v (docs/physics.md
+// §2.3; Johnson, Contact Mechanics, eq. 11.24): tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5), R* = R
+// (ball on a flat), 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2, m* = m — or, with
+// effects.surface_compliance, the reduced mass m M / (m + M) with the plate mass M.
 // Throws Error(kBadScene) when the materials' elastic constants are unknown.
 double HertzContactTime(const Scene& scene, double impact_speed_m_s);
 

@@ -83,9 +83,10 @@ struct TruthOptions {
   bool IsValid(std::string* error) const;
 };
 
-// Hertz contact duration of the ball on a rigid-backed flat of the surface material at impact
-// speed v: tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5) (docs/physics.md §2; Johnson, Contact Mechanics,
-// eq. 11.24), m* = m, R* = R, 1/E* = (1-nu_b^2)/E_b + (1-nu_s^2)/E_s.
+// Hertz contact duration of the ball on a flat of the surface material at impact speed v:
+// HertzContactTime (kinematics.hpp), tau = 2.87 (m*^2 / (R* E*^2 v))^(1/5) (docs/physics.md §2.3;
+// Johnson, Contact Mechanics, eq. 11.24), R* = R, 1/E* = (1-nu_b^2)/E_b + (1-nu_s^2)/E_s, m* = m
+// (the reduced mass m M / (m + M) with effects.surface_compliance and a plate of mass M).
 // Throws Error(kBadScene) when a material has no Young's modulus.
 double HertzContactDuration(const Scene& scene, double v_m_s);
 
@@ -235,9 +236,15 @@ struct SynthSpec {
 };
 
 // Benchmark-corpus presets: "steel-copper", "glass-glass", "pingpong-wood", "rubber-wood",
-// "phone-16k", "two-drops". Throws Error(kBadParameter) for an unknown name.
+// "phone-16k", "two-drops". The scene (ball, surface, drop, effects) is the bundled scene file
+// SynthPresetSceneFile(name) (data/scenes/NAME.toml, bundled_scenes.hpp; source left empty);
+// e(v), the truth options, the render settings and the drops are the preset's own. Throws
+// Error(kBadParameter) for an unknown name.
 SynthSpec SynthPreset(const std::string& name);
 std::vector<std::string> SynthPresetNames();
+// The bundled scene file (BundledSceneNames) a preset takes its scene from ("two-drops":
+// "steel-copper"). Throws Error(kBadParameter) for an unknown name.
+std::string SynthPresetSceneFile(const std::string& name);
 
 struct SynthResult {
   std::vector<std::vector<TruthImpact>> truth;  // per drop

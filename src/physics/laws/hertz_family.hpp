@@ -10,11 +10,11 @@ double HertzTsujiAlpha(double e);
 
 // Viscoelastic Hertz, F = k (d^1.5 + 1.5 A d^0.5 d'): e depends on b = beta v^(1/5) only,
 // beta = 1.5 A (k/m*)^(2/5). The master curve e(b) (exact numerics) and the low-speed series of
-// Schwager & Poschel, PRE 78 (2008) 051304 (docs/physics.md §3):
+// Ramirez, Poschel, Brilliantov & Schwager, PRE 60 (1999) 4465 (docs/physics.md §3.5):
 //   e = 1 - C1 b + C2 b^2 - ...,  C1 = 1.15344, C2 = 0.79826.
 double ViscoelasticRestitution(double b);
 double ViscoelasticSeriesRestitution(double b);
-constexpr double kSchwagerPoschelC1 = 1.15344;
-constexpr double kSchwagerPoschelC2 = 0.79826;
+constexpr double kRamirezC1 = 1.15344;
+constexpr double kRamirezC2 = 0.79826;
 
 }  // namespace bouncecal::laws

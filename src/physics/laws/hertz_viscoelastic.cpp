@@ -1,10 +1,11 @@
 // Viscoelastic Hertz (Brilliantov, Spahn, Hertzsch & Poschel, PRE 53 (1996) 5382; Kuwabara &
-// Kono, Jpn. J. Appl. Phys. 26 (1987) 1230; docs/physics.md §3):
+// Kono, Jpn. J. Appl. Phys. 26 (1987) 1230; docs/physics.md §3.5):
 //   F = k (delta^(3/2) + (3/2) A delta^(1/2) delta'),  A = dissipative time constant (s).
 // With delta = L x, t = (L/v) s, L = (m* v^2/k)^(2/5) the equation becomes
 //   x'' = -x^(3/2) - b x^(1/2) x',  b = beta v^(1/5),  beta = (3/2) A (k/m*)^(2/5),
-// so e falls with v through b alone. Closed forms: the low-speed series of Schwager & Poschel
-// (2008), e = 1 - C1 b + C2 b^2 - ... (ViscoelasticSeriesRestitution, a test oracle); the
+// so e falls with v through b alone. Closed forms: the low-speed series of Ramirez, Poschel,
+// Brilliantov & Schwager, PRE 60 (1999) 4465, e = 1 - C1 b + C2 b^2 - ... (its explicit first
+// coefficients; ViscoelasticSeriesRestitution, a test oracle); the
 // Padé form of Muller & Poschel (2011) is NOT implemented (not reproduced reliably here).
 // Restitution/ContactTime come from the exact master curves e(b), tau(b), whose nodes are
 // computed at build time (laws/master_curves.hpp: 1201 nodes of b in [0, 12], dopri5 at rel.
@@ -118,7 +119,7 @@ class HertzViscoelastic final : public LawImpl<HertzViscoelastic> {
 
 double ViscoelasticRestitution(double b) { return Curves().e_of_b(b); }
 double ViscoelasticSeriesRestitution(double b) {
-  return 1.0 - kSchwagerPoschelC1 * b + kSchwagerPoschelC2 * b * b;  // S&P 2008, 2 terms
+  return 1.0 - kRamirezC1 * b + kRamirezC2 * b * b;  // Ramirez et al. 1999, 2 terms
 }
 
 template std::unique_ptr<LawBase> MakeLaw<HertzViscoelastic>(const LawSpec&, const Scene&);

@@ -8,7 +8,8 @@
 //   hunt-crossley-flores  k, n, e, v0: alpha = 8 (1 - e) / (5 e v0)     (Flores et al., Mech.
 //                                                                       Mach. Theory 46 (2011))
 // The variants set alpha from a target e at the impact speed v0; none reproduces e exactly
-// (docs/physics.md §3: ~0.847 and ~0.789 for a target of 0.8), which tests/laws_test.cpp shows.
+// (docs/physics.md §3.6: 0.833 (hc), 0.847 (ln), 0.789 (flores) for a target of 0.8 at
+// 1.98 m/s), which tests/laws_test.cpp shows.
 // The force would turn attractive for alpha delta' < -1, but during unloading the force
 // vanishes as delta' -> -1/alpha, so the ball approaches that speed only asymptotically and
 // never crosses it: v_out < 1/alpha and F >= 0 throughout, the F = 0 and delta = 0 end rules

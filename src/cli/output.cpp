@@ -20,7 +20,8 @@ CLI::Option* AddOutputOption(CLI::App* sub, const std::string& names, std::strin
 
 void PrintWarnings(const std::vector<Warning>& warnings) {
   for (const Warning& w : warnings)
-    std::fprintf(stderr, "bouncecal: warning [%s]: %s\n", w.code.c_str(), w.message.c_str());
+    std::fprintf(stderr, "bouncecal: warning [%s]: %s\n", w.code.c_str(),
+                 FlagText(w.message).c_str());
 }
 
 int DefaultJobs() {
@@ -57,6 +58,11 @@ constexpr FlagName kFields[] = {
     {"SceneOverrides::law_sets", "--set"},
     {"SceneOverrides::expression", "--expression"},
     {"DropInputOptions::impacts_files", "--impacts"},
+    {"DetectOptions::start_s/end_s", "--start/--end"},
+    {"DetectOptions::start_s", "--start"},
+    {"DetectOptions::end_s", "--end"},
+    {"DetectOptions::min_snr_db", "--min-snr-db"},
+    {"DetectOptions::channel", "--channel"},
     {"ExportOptions::force", "--force"},
     {"ExportOptions::allow_approximation", "--allow-approximation"},
     {"WriteOptions::force", "--force"},

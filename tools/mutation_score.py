@@ -88,9 +88,12 @@ def sync_tree(work):
         if not os.path.isfile(src):
             continue
         os.makedirs(os.path.dirname(dst), exist_ok=True)
-        # Copy only what changed, so the incremental build stays incremental.
+        # Copy only what changed, so the incremental build stays incremental. A plain copy, with
+        # a new modification time: copy2 would keep the source's older time, and make would keep
+        # an object built from a mutated copy (an interrupted run) as up to date.
         if not os.path.exists(dst) or open(src, "rb").read() != open(dst, "rb").read():
-            shutil.copy2(src, dst)
+            shutil.copyfile(src, dst)
+            shutil.copymode(src, dst)
     # Files gone from the tree (renamed or deleted) must not linger in the copy: CMake globs.
     tracked = {f for f in files if f}
     for dirpath, dirnames, filenames in os.walk(os.path.join(work, "src_tree")):
@@ -153,6 +156,8 @@ def main():
     ap.add_argument("--no-baseline", action="store_true",
                     help="skip the unmutated suite run (only when it passed on these sources)")
     ap.add_argument("--test-timeout", type=int, default=900, help="seconds for one suite run")
+    ap.add_argument("--cmake-args", default="",
+                    help="extra configure arguments for the copy (e.g. -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld)")
     ap.add_argument("--ctest-args", default="-LE integration",
                     help="extra ctest arguments (default leaves out the DEM-simulator runs)")
     args = ap.parse_args()
@@ -169,7 +174,7 @@ def main():
     if shutil.which("ccache"):
         env.setdefault("CMAKE_CXX_COMPILER_LAUNCHER", "ccache")
     rc, out, _ = run(["cmake", "-S", tree, "-B", build, "-DCMAKE_BUILD_TYPE=Release",
-                      "-DBOUNCECAL_WERROR=OFF"], tree, env=env)
+                      "-DBOUNCECAL_WERROR=OFF"] + args.cmake_args.split(), tree, env=env)
     if rc != 0:
         sys.exit("configure failed:\n" + out[-3000:])
     print(f"building the unmutated copy in {build} ...", flush=True)

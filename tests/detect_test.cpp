@@ -73,7 +73,7 @@ TEST(Detect, RenderedDropIsFoundWithExactTimes) {
   // Sub-sample timing: the sequence's constant offset (the median error) and the RMS error about
   // it. Times on the integer sample grid alone would scatter by 1/sqrt(12) of a sample (6.0 us at
   // this preset's 48 kHz); an onset convention off by a sample would move the offset by 21 us.
-  // Measured: offset -1.73 us (bound 3 us), RMS 1.73 us (bound 2.5 us; the errors drift from
+  // Measured: offset -1.36 us (bound 3 us), RMS 1.72 us (bound 2.5 us; the errors drift from
   // -4.5 us on the loud first impacts to +2 us by the 20th).
   std::vector<double> sorted = err;
   std::sort(sorted.begin(), sorted.end());

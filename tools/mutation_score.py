@@ -158,8 +158,8 @@ def main():
     ap.add_argument("--test-timeout", type=int, default=900, help="seconds for one suite run")
     ap.add_argument("--cmake-args", default="",
                     help="extra configure arguments for the copy (e.g. -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld)")
-    ap.add_argument("--ctest-args", default="-LE integration",
-                    help="extra ctest arguments (default leaves out the DEM-simulator runs)")
+    ap.add_argument("--ctest-args", default="-LE integration|bench",
+                    help="extra ctest arguments (default leaves out the DEM-simulator runs and the README-number benchmarks)")
     args = ap.parse_args()
 
     muts = parse_list(args.list)

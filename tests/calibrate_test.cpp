@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
@@ -192,6 +193,39 @@ TEST(Calibrate, ZeroScatterIsTheTimingOnlyFit) {
   } else {
     EXPECT_LT(a.scatter_e, 1e-4);  // timing noise only: any scatter found is tiny
     EXPECT_NEAR(Param(a, "gamma").value, Param(b, "gamma").value, 0.2 * Param(b, "gamma").sigma);
+  }
+}
+
+// A parameter's sigma is what the stated timing sigmas (and the fitted scatter) allow, not how
+// well one realisation happened to fit: exact times with a stated 10 us sigma (chi2 ~ 0) get the
+// same sigma as noisy times of that sigma (chi2 ~ dof). Scaling the covariance by chi2/dof when
+// it is below 1 would report a near-zero sigma for the exact times.
+TEST(Calibrate, ParameterSigmaDoesNotShrinkWhenTheDataFitBetterThanTheirSigmas) {
+  const Scene truth = WithE(SteelScene("walton-braun"), 0.75);
+  oracle_truth::Options exact_o, noisy_o;
+  exact_o.reported_sigma_s = 10e-6;
+  noisy_o.timing_sigma_s = 10e-6;
+  noisy_o.seed = 4;
+  const Sequence exact_seq = oracle_truth::Make(truth, exact_o).sequence;
+  CalibrationOptions timing_only;
+  timing_only.estimate_scatter = false;
+  const Calibration noisy =
+      Calibrate({{"x", oracle_truth::Make(truth, noisy_o).sequence}}, Start(truth), timing_only);
+  ASSERT_EQ(noisy.outcome, FitOutcome::kConverged) << noisy.reason;
+  for (bool estimate_scatter : {false, true}) {
+    SCOPED_TRACE(estimate_scatter ? "scatter estimated" : "no scatter");
+    CalibrationOptions opt;
+    opt.estimate_scatter = estimate_scatter;
+    const Calibration exact = Calibrate({{"x", exact_seq}}, Start(truth), opt);
+    ASSERT_EQ(exact.outcome, FitOutcome::kConverged) << exact.reason;
+    EXPECT_LT(exact.chi2_dof, 0.01);
+    EXPECT_EQ(exact.scatter_e, 0.0);  // exact data: no scatter to find
+    // Measured ratio 1.0000 (the Jacobians at slightly different speeds); bound 1e-3. The
+    // noisy fit's chi2/dof is 0.45 here: a sigma scaled by it would fail too.
+    EXPECT_NEAR(Param(exact, "gamma").sigma / Param(noisy, "gamma").sigma, 1.0, 1e-3);
+    std::printf("[ measured ] sigma(gamma) exact/noisy times: %.4f (chi2/dof %.2g vs %.2g)\n",
+                Param(exact, "gamma").sigma / Param(noisy, "gamma").sigma, exact.chi2_dof,
+                noisy.chi2_dof);
   }
 }
 

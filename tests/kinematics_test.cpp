@@ -184,6 +184,9 @@ void CheckSigmasAgainstMonteCarlo(const Scene& scene, AnalysisOptions options) {
   const int trials = 4000;
   const size_t nb = e.size();
   std::vector<double> sum(nb, 0), sum2(nb, 0), cross(nb, 0);
+  // Speeds: v_out,k from interval k, v_in,k+1 = A(v_out,k) through the flight (drag factor).
+  std::vector<double> vin_sum(nb, 0), vin_sum2(nb, 0), vout_sum(nb, 0), vout_sum2(nb, 0);
+  std::vector<double> eta_sum(nb, 0), eta_sum2(nb, 0);
   double mean_sum = 0, mean_sum2 = 0;
   for (int trial = 0; trial < trials; ++trial) {
     Sequence noisy = exact;
@@ -194,6 +197,12 @@ void CheckSigmasAgainstMonteCarlo(const Scene& scene, AnalysisOptions options) {
       sum[k] += d;
       sum2[k] += d * d;
       if (k + 1 < nb) cross[k] += d * (a.bounces[k + 1].e - ref.bounces[k + 1].e);
+      const double dvi = a.bounces[k].v_in_m_s - ref.bounces[k].v_in_m_s;
+      const double dvo = a.bounces[k].v_out_m_s - ref.bounces[k].v_out_m_s;
+      vin_sum[k] += dvi, vin_sum2[k] += dvi * dvi;
+      vout_sum[k] += dvo, vout_sum2[k] += dvo * dvo;
+      const double deta = a.bounces[k].eta - ref.bounces[k].eta;
+      eta_sum[k] += deta, eta_sum2[k] += deta * deta;
     }
     const double dm = *a.mean_eta_first3 - *ref.mean_eta_first3;
     mean_sum += dm;
@@ -205,6 +214,25 @@ void CheckSigmasAgainstMonteCarlo(const Scene& scene, AnalysisOptions options) {
     const double mean = sum[k] / trials;
     sd[k] = std::sqrt(sum2[k] / trials - mean * mean);
     EXPECT_NEAR(ref.bounces[k].e_sigma / sd[k], 1.0, 0.10) << "bounce " << k;
+  }
+  // The speeds' sigmas (the first v_in comes from the scene, not from an interval).
+  auto sd_of = [&](const std::vector<double>& s1, const std::vector<double>& s2, size_t k) {
+    const double mean = s1[k] / trials;
+    return std::sqrt(s2[k] / trials - mean * mean);
+  };
+  for (size_t k = 0; k < nb; ++k) {
+    if (k > 0 && std::isfinite(ref.bounces[k].v_in_m_s)) {
+      EXPECT_NEAR(ref.bounces[k].v_in_sigma_m_s / sd_of(vin_sum, vin_sum2, k), 1.0, 0.10)
+          << "v_in of bounce " << k;
+    }
+    if (std::isfinite(ref.bounces[k].eta)) {
+      EXPECT_NEAR(ref.bounces[k].eta_sigma / sd_of(eta_sum, eta_sum2, k), 1.0, 0.10)
+          << "eta of bounce " << k;
+    }
+    if (k + 1 < nb && std::isfinite(ref.bounces[k].v_out_m_s)) {
+      EXPECT_NEAR(ref.bounces[k].v_out_sigma_m_s / sd_of(vout_sum, vout_sum2, k), 1.0, 0.10)
+          << "v_out of bounce " << k;
+    }
   }
   for (size_t k = 0; k + 1 < nb; ++k) {
     if (!std::isfinite(ref.bounces[k].e)) continue;

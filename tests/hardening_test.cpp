@@ -76,6 +76,16 @@ TEST(UserText, AbbreviateCutsLongEchoes) {
 // ---------------------------------------------------------------------------------------------
 // Non-UTF-8 file names (issue 14 item 3)
 
+// Front ends (CLI flags, Python keywords) rename Options fields as whole names only.
+TEST(UserText, RenameFieldsReplacesWholeNamesOnly) {
+  constexpr bouncecal::NameInFrontEnd names[] = {{"SceneOverrides::law", "--law"},
+                                                 {"SceneOverrides::law_sets", "--set"}};
+  EXPECT_EQ(bouncecal::RenameFields("SceneOverrides::law_sets = x; SceneOverrides::law: y", names),
+            "--set = x; --law: y");
+  EXPECT_EQ(bouncecal::RenameFields("SceneOverrides::law", names), "--law");
+  EXPECT_EQ(bouncecal::RenameFields("SceneOverrides::lawyer", names), "SceneOverrides::lawyer");
+}
+
 TEST(NonUtf8Path, DetectAnalyzeCalibrateJsonStayValid) {
   ScratchDir dir("bc_harden");
   const std::string file = NonUtf8Copy(dir);

@@ -19,7 +19,8 @@ rows, matched by their first `key` cells (default 1). Every other cell is compar
   figures move only when the code changes) or half a unit in the README's last printed digit;
 - columns listed in `times` are timings, noisy on a shared machine: they agree within the
   stated factor (x3: between a third and three times the README's value), or both lie within
-  ten units of the README's last printed digit (too close to the printing resolution to tell);
+  20 units of the README's last printed digit (a few-millisecond wall-clock step printed as
+  0.003 s moved to 0.017 s under load: too close to the printing resolution to tell);
 - anything else (words, "–") must be equal.
 
     tools/readme_numbers.py [--build DIR]            # check; exit 1 and list every drift
@@ -110,8 +111,8 @@ def compare_cell(readme, program, tolerance, time_factor):
     for ta, tb in zip(a, b):
         va, vb = float(ta), float(tb)
         if time_factor:
-            if max(abs(va), abs(vb)) <= 20 * half_unit(ta):
-                continue  # within ten printed units of zero: the resolution, not the speed
+            if max(abs(va), abs(vb)) <= 40 * half_unit(ta):
+                continue  # within 20 printed units of zero: the resolution, not the speed
             if va <= 0 or vb <= 0 or not (va / time_factor <= vb <= va * time_factor):
                 return f"time {tb} outside {ta} x/÷ {time_factor:g}"
             continue

@@ -7,6 +7,7 @@
 
 #include "bindings.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 
 namespace bouncecal::python {
 
@@ -150,13 +151,9 @@ DropInputOptions TakeDropInputOptions(Options& o) {
 
 namespace {
 
-struct Keyword {
-  const char* library;
-  const char* keyword;
-};
 // Field names -> keywords, each replaced as a whole name (SceneOverrides::law is not
 // SceneOverrides::law_sets).
-constexpr Keyword kKeywords[] = {
+constexpr NameInFrontEnd kKeywords[] = {
     {"SceneOverrides::height_m", "height"},
     {"SceneOverrides::height_sigma_m", "height_sigma"},
     {"SceneOverrides::impact_speed_m_s", "impact_speed"},
@@ -170,6 +167,7 @@ constexpr Keyword kKeywords[] = {
     {"SceneOverrides::law_sets", "set"},
     {"SceneOverrides::expression", "expression"},
     {"DropInputOptions::impacts_files", "impacts"},
+    {"DetectOptions::start_s/end_s", "start/end"},
     {"DetectOptions::start_s", "start"},
     {"DetectOptions::end_s", "end"},
     {"DetectOptions::min_snr_db", "min_snr_db"},
@@ -178,28 +176,8 @@ constexpr Keyword kKeywords[] = {
     {"WriteOptions::force", "force"},
 };
 
-bool NameChar(char c) {
-  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
-}
-
 }  // namespace
 
-std::string KeywordText(const std::string& message) {
-  std::string m = message;
-  for (const Keyword& k : kKeywords) {
-    const std::string from = k.library, to = k.keyword;
-    std::size_t at = m.find(from);
-    while (at != std::string::npos) {
-      const std::size_t end = at + from.size();
-      if (end < m.size() && NameChar(m[end])) {
-        at = m.find(from, end);
-        continue;
-      }
-      m.replace(at, from.size(), to);
-      at = m.find(from, at + to.size());
-    }
-  }
-  return m;
-}
+std::string KeywordText(const std::string& message) { return RenameFields(message, kKeywords); }
 
 }  // namespace bouncecal::python

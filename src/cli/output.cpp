@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/user_text.hpp"
 
 namespace bouncecal::cli {
 
@@ -34,17 +35,13 @@ namespace {
 // Library text -> command-line text. Phrases first (whole wordings the flag changes), then
 // field names, each replaced only as a whole name (SceneOverrides::law is not
 // SceneOverrides::law_sets).
-struct FlagName {
-  const char* library;
-  const char* cli;
-};
-constexpr FlagName kPhrases[] = {
+constexpr NameInFrontEnd kPhrases[] = {
     {"exists and WriteOptions::force is false (set it to replace the file)",
      "exists; use --force to replace it"},
     {"scene from overrides: ", "scene from flags: "},
     {" (after the overrides)", " (after command-line overrides)"},
 };
-constexpr FlagName kFields[] = {
+constexpr NameInFrontEnd kFields[] = {
     {"SceneOverrides::height_m", "--height"},
     {"SceneOverrides::height_sigma_m", "--height-sigma"},
     {"SceneOverrides::impact_speed_m_s", "--impact-speed"},
@@ -68,33 +65,16 @@ constexpr FlagName kFields[] = {
     {"WriteOptions::force", "--force"},
 };
 
-bool NameChar(char c) {
-  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
-}
-
 }  // namespace
 
 std::string FlagText(const std::string& message) {
   std::string m = message;
-  for (const FlagName& p : kPhrases) {
-    const std::string from = p.library, to = p.cli;
+  for (const NameInFrontEnd& p : kPhrases) {
+    const std::string from = p.library, to = p.front_end;
     for (std::size_t at = m.find(from); at != std::string::npos; at = m.find(from, at + to.size()))
       m.replace(at, from.size(), to);
   }
-  for (const FlagName& f : kFields) {
-    const std::string from = f.library, to = f.cli;
-    std::size_t at = m.find(from);
-    while (at != std::string::npos) {
-      const std::size_t end = at + from.size();
-      if (end < m.size() && NameChar(m[end])) {
-        at = m.find(from, end);
-        continue;
-      }
-      m.replace(at, from.size(), to);
-      at = m.find(from, at + to.size());
-    }
-  }
-  return m;
+  return RenameFields(m, kFields);
 }
 
 }  // namespace bouncecal::cli

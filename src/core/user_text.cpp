@@ -100,4 +100,28 @@ std::string Abbreviate(std::string_view s, std::size_t max_chars) {
   return text.substr(0, i) + "… (" + std::to_string(s.size()) + " bytes)";
 }
 
+namespace {
+bool NameChar(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+}
+}  // namespace
+
+std::string RenameFields(const std::string& message, std::span<const NameInFrontEnd> names) {
+  std::string m = message;
+  for (const NameInFrontEnd& f : names) {
+    const std::string from = f.library, to = f.front_end;
+    std::size_t at = m.find(from);
+    while (at != std::string::npos) {
+      const std::size_t end = at + from.size();
+      if (end < m.size() && NameChar(m[end])) {
+        at = m.find(from, end);
+        continue;
+      }
+      m.replace(at, from.size(), to);
+      at = m.find(from, at + to.size());
+    }
+  }
+  return m;
+}
+
 }  // namespace bouncecal

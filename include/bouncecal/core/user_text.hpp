@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstddef>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -34,5 +35,15 @@ std::string DumpJson(const nlohmann::json& j, int indent = -1);
 // (code points) kept, and "… (N bytes)" appended when it was cut.
 inline constexpr std::size_t kEchoMaxChars = 80;
 std::string Abbreviate(std::string_view s, std::size_t max_chars = kEchoMaxChars);
+
+// A library name (an Options field, "SceneOverrides::height_m") and what a front end calls it
+// (a flag "--height", a keyword "height").
+struct NameInFrontEnd {
+  const char* library;
+  const char* front_end;
+};
+// `message` with each library name replaced by its front-end name, as a whole name only
+// ("SceneOverrides::law" does not match inside "SceneOverrides::law_sets"), in table order.
+std::string RenameFields(const std::string& message, std::span<const NameInFrontEnd> names);
 
 }  // namespace bouncecal

@@ -1,5 +1,8 @@
 #include "bouncecal/core/user_text.hpp"
 
+#include <cstdio>
+#include <cstdlib>
+
 #include <cstdint>
 
 namespace bouncecal {
@@ -98,6 +101,16 @@ std::string Abbreviate(std::string_view s, std::size_t max_chars) {
   }
   if (i >= text.size()) return text;
   return text.substr(0, i) + "… (" + std::to_string(s.size()) + " bytes)";
+}
+
+std::string ShortestNumber(double v) {
+  char buf[64];
+  for (int prec = 1; prec <= 17; ++prec) {
+    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
+    if (std::strtod(buf, nullptr) == v) return buf;
+  }
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
 }
 
 namespace {

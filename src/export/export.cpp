@@ -23,14 +23,7 @@ namespace bouncecal {
 
 namespace exporter {
 
-std::string Num(double v) {
-  char buf[64];
-  for (int prec = 1; prec <= 17; ++prec) {
-    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
+std::string Num(double v) { return ShortestNumber(v); }
 
 PackingScene::PackingScene(double restitution) {
   const double le = std::log(restitution);

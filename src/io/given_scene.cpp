@@ -17,14 +17,7 @@ namespace bouncecal {
 namespace {
 
 // Shortest representation that reads back to the same double.
-std::string Num(double v) {
-  char buf[64];
-  for (int prec = 1; prec <= 17; ++prec) {
-    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
+std::string Num(double v) { return ShortestNumber(v); }
 
 std::string Trim(const std::string& s) {
   const size_t b = s.find_first_not_of(" \t");

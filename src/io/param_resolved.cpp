@@ -19,14 +19,7 @@ using nlohmann::json;
 json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 // Shortest text that reads back to the same double.
-std::string Text(double v) {
-  char buf[64];
-  for (int prec = 1; prec <= 17; ++prec) {
-    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
+std::string Text(double v) { return ShortestNumber(v); }
 
 // E* of ball on surface: the one rule (EffectiveModulusPa, scene.hpp); NaN (null in the file)
 // when either body's elastic constants are unknown.

@@ -133,17 +133,7 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  // Shortest representation that round-trips.
-  for (int prec = 1; prec <= 17; ++prec) {
-    char tmp[64];
-    std::snprintf(tmp, sizeof tmp, "%.*g", prec, v);
-    if (std::strtod(tmp, nullptr) == v) return tmp;
-  }
-  return buf;
-}
+std::string Num(double v) { return ShortestNumber(v); }
 
 // The law's registry row says whether it is defined by an expression (no name checks here).
 bool NeedsExpression(const std::string& law_name) {

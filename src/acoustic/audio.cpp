@@ -154,34 +154,23 @@ double Quantile(std::vector<float>* v, double p) {
 // +-1e30 made every such sum overflow: "no bounce sequence" or an SNR of -nan (issue 14).
 constexpr double kMaxSampleMagnitude = 1e6;
 
-// NaN/Inf or absurdly large samples are an error naming the channel and frame; each channel's
-// clipping report.
-void CheckSamples(Audio* a) {
-  const std::string& path = a->info.path;
-  for (std::size_t c = 0; c < a->channels.size(); ++c) {
-    const auto& x = a->channels[c];
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      const bool finite = std::isfinite(x[i]);
-      if (finite && std::abs(x[i]) <= kMaxSampleMagnitude) continue;
-      char msg[256];
-      if (finite) {
-        std::snprintf(msg, sizeof(msg),
-                      ": sample %g in channel %zu at frame %zu (%.6f s) is more than %g times "
-                      "full scale (a float file this loud is corrupt or mis-scaled: rescale it "
-                      "to +-1)",
-                      static_cast<double>(x[i]), c, i,
-                      static_cast<double>(i) / a->info.sample_rate_hz, kMaxSampleMagnitude);
-      } else {
-        std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %zu (%.6f s)",
-                      std::isnan(x[i]) ? "NaN" : "infinite", c, i,
-                      static_cast<double>(i) / a->info.sample_rate_hz);
-      }
-      throw Error(ErrorCode::kBadSamples, path + msg);
-    }
+// The message for a sample that is NaN/Inf or beyond kMaxSampleMagnitude.
+std::string BadSampleMessage(const std::string& path, float v, std::size_t channel,
+                             std::int64_t frame, double rate_hz) {
+  char msg[256];
+  if (std::isfinite(v)) {
+    std::snprintf(msg, sizeof(msg),
+                  ": sample %g in channel %zu at frame %lld (%.6f s) is more than %g times "
+                  "full scale (a float file this loud is corrupt or mis-scaled: rescale it "
+                  "to +-1)",
+                  static_cast<double>(v), channel, static_cast<long long>(frame),
+                  static_cast<double>(frame) / rate_hz, kMaxSampleMagnitude);
+  } else {
+    std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %lld (%.6f s)",
+                  std::isnan(v) ? "NaN" : "infinite", channel, static_cast<long long>(frame),
+                  static_cast<double>(frame) / rate_hz);
   }
-  a->clipping.clear();
-  for (std::size_t c = 0; c < a->channels.size(); ++c)
-    a->clipping.push_back(AnalyzeClipping(a->channels[c], static_cast<int>(c)));
+  return path + msg;
 }
 
 }  // namespace
@@ -232,7 +221,90 @@ bool LooksLikeMpegAudio(const fs::path& p) {
 
 }  // namespace
 
-Audio ReadAudio(const std::string& path) {
+// Clipping of one channel, kept up to date block by block (AnalyzeClipping's rule without
+// knowing the channel's extremes in advance): per side, the extreme so far and the runs of
+// samples within a float rounding step (1e-6 relative) of it; a new extreme beyond that step
+// starts the count again.
+struct AudioReader::Tracker {
+  struct Side {
+    double extreme = 0.0;  // most positive (or, negated, most negative) value so far
+    std::int64_t samples = 0, runs = 0, run = 0;
+    void Close() {
+      if (run >= kMinClipRun) {
+        samples += run;
+        ++runs;
+      }
+      run = 0;
+    }
+    void Add(double v) {  // v: the sample (negated for the negative side)
+      const double tol = 1e-6 * std::fabs(extreme);
+      if (v > extreme + tol) {
+        extreme = v;
+        samples = runs = 0;
+        run = 1;
+      } else if (v >= extreme - tol && extreme > 0.0) {
+        extreme = std::max(extreme, v);
+        ++run;
+      } else {
+        Close();
+      }
+    }
+  };
+  Side pos, neg;
+  bool any = false;
+  // The block's samples; blocks with nothing near the extremes only end the current runs.
+  void Update(const float* x, std::size_t n) {
+    if (n == 0) return;
+    const auto [mn_it, mx_it] = std::minmax_element(x, x + n);
+    const double mx = *mx_it, mn = *mn_it;
+    const bool near_pos = mx >= pos.extreme - 1e-6 * std::fabs(pos.extreme) || !any;
+    const bool near_neg = -mn >= neg.extreme - 1e-6 * std::fabs(neg.extreme) || !any;
+    any = true;
+    if (!near_pos && !near_neg) {
+      pos.Close();
+      neg.Close();
+      return;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (near_pos) pos.Add(x[i]);
+      if (near_neg) neg.Add(-static_cast<double>(x[i]));
+    }
+    if (!near_pos) pos.Close();
+    if (!near_neg) neg.Close();
+  }
+  ClippingReport Report(int channel) const {
+    Side p = pos, q = neg;
+    p.Close();
+    q.Close();
+    ClippingReport r;
+    r.channel = channel;
+    if (!any) return r;
+    r.peak = std::max(std::max(p.extreme, 0.0), std::max(q.extreme, 0.0));
+    if (p.extreme > 0.0) {
+      r.clipped_samples += p.samples;
+      r.clipped_runs += p.runs;
+    }
+    if (q.extreme > 0.0) {
+      r.clipped_samples += q.samples;
+      r.clipped_runs += q.runs;
+    }
+    if (r.clipped_runs > 0) r.clip_level = r.peak;
+    return r;
+  }
+};
+
+// What a reader reads from: a libsndfile handle, or audio FFmpeg decoded on opening.
+struct AudioReader::Source {
+  SndfilePtr file;
+  Audio decoded;
+  std::vector<float> interleaved;
+};
+
+namespace {
+
+// The path checks every reader makes first (exit 3 for a missing or unreadable input, 4 for
+// an empty file).
+void CheckInputPath(const std::string& path) {
   std::error_code ec;
   const fs::path p(path);
   if (path.empty()) throw Error(ErrorCode::kInputMissing, "<empty path>: no file given");
@@ -247,39 +319,19 @@ Audio ReadAudio(const std::string& path) {
   }
   const auto size = fs::file_size(p, ec);
   if (!ec && size == 0) throw Error(ErrorCode::kNotAudio, path + ": empty file (0 bytes)");
+}
 
-  if (LooksLikeMpegAudio(p) && FfmpegAvailable()) {
-    Audio decoded = ReadAudioFfmpeg(path);
-    CheckSamples(&decoded);
-    return decoded;
-  }
-  SF_INFO sfinfo{};
-  SndfilePtr f(sf_open(path.c_str(), SFM_READ, &sfinfo));
-  if (!f) {
-    const std::string sf_why = sf_strerror(nullptr);
-    Audio decoded;
-    try {
-      decoded = ReadAudioFfmpeg(path);
-    } catch (const Error& e) {
-      std::string ff_why = e.what();
-      if (ff_why.rfind(path + ": ", 0) == 0) ff_why = ff_why.substr(path.size() + 2);
-      throw Error(ErrorCode::kNotAudio, path +
-                                            ": not an audio file libsndfile or FFmpeg can read "
-                                            "(libsndfile: " +
-                                            sf_why + "; FFmpeg: " + ff_why + ")");
-    }
-    CheckSamples(&decoded);
-    return decoded;
-  }
-  Audio a;
-  a.info.path = path;
-  a.info.sample_rate_hz = sfinfo.samplerate;
-  a.info.channels = sfinfo.channels;
-  a.info.format = MajorFormatName(sfinfo.format);
-  a.info.subtype = SubtypeName(sfinfo.format);
-
+// The header of an opened libsndfile file: what it says, and its refusals.
+AudioInfo SndfileInfo(const std::string& path, SNDFILE* f, const SF_INFO& sfinfo) {
+  AudioInfo info;
+  info.path = path;
+  info.sample_rate_hz = sfinfo.samplerate;
+  info.channels = sfinfo.channels;
+  info.format = MajorFormatName(sfinfo.format);
+  info.subtype = SubtypeName(sfinfo.format);
+  info.frames = sfinfo.frames;
   std::string detail;
-  if (LogShowsTruncatedData(f.get(), &detail)) {
+  if (LogShowsTruncatedData(f, &detail)) {
     throw Error(ErrorCode::kNotAudio, path + ": truncated (" + detail + ")");
   }
   if (sfinfo.channels < 1) {
@@ -295,39 +347,154 @@ Audio ReadAudio(const std::string& path) {
   if (sfinfo.frames <= 0) {
     throw Error(ErrorCode::kNotAudio, path + ": no audio frames (zero-length audio data)");
   }
+  return info;
+}
 
-  // Integer formats come back scaled to [-1, 1) (libsndfile's default normalisation).
-  const int nch = sfinfo.channels;
-  const auto total = static_cast<std::size_t>(sfinfo.frames);
-  a.channels.assign(static_cast<std::size_t>(nch), std::vector<float>());
-  // (A corrupt header may claim absurd lengths: reserve at most 16 Mi frames up front.)
-  for (auto& c : a.channels) c.reserve(std::min<std::size_t>(total, std::size_t{1} << 24));
-  constexpr sf_count_t kBlock = 65536;
-  std::vector<float> buf(static_cast<std::size_t>(kBlock) * static_cast<std::size_t>(nch));
-  std::int64_t read_total = 0;
-  while (read_total < sfinfo.frames) {
-    const sf_count_t want = std::min<sf_count_t>(kBlock, sfinfo.frames - read_total);
-    const sf_count_t got = sf_readf_float(f.get(), buf.data(), want);
-    if (got <= 0) break;
-    for (sf_count_t i = 0; i < got; ++i) {
-      for (int c = 0; c < nch; ++c) {
-        a.channels[static_cast<std::size_t>(c)].push_back(
-            buf[static_cast<std::size_t>(i * nch + c)]);
+}  // namespace
+
+AudioReader::AudioReader(const std::string& path) : source_(std::make_unique<Source>()) {
+  CheckInputPath(path);
+  const fs::path p(path);
+  bool decoded = false;
+  SF_INFO sfinfo{};
+  if (LooksLikeMpegAudio(p) && FfmpegAvailable()) {
+    source_->decoded = ReadAudioFfmpeg(path);
+    decoded = true;
+  } else {
+    source_->file.reset(sf_open(path.c_str(), SFM_READ, &sfinfo));
+    if (!source_->file) {
+      const std::string sf_why = sf_strerror(nullptr);
+      try {
+        source_->decoded = ReadAudioFfmpeg(path);
+      } catch (const Error& e) {
+        std::string ff_why = e.what();
+        if (ff_why.rfind(path + ": ", 0) == 0) ff_why = ff_why.substr(path.size() + 2);
+        throw Error(ErrorCode::kNotAudio, path +
+                                              ": not an audio file libsndfile or FFmpeg can read "
+                                              "(libsndfile: " +
+                                              sf_why + "; FFmpeg: " + ff_why + ")");
+      }
+      decoded = true;
+    }
+  }
+  if (decoded) {
+    info_ = source_->decoded.info;
+    info_.frames = source_->decoded.channels.empty()
+                       ? 0
+                       : static_cast<std::int64_t>(source_->decoded.channels.front().size());
+    memory_ = &source_->decoded;
+  } else {
+    info_ = SndfileInfo(path, source_->file.get(), sfinfo);
+  }
+  trackers_.resize(static_cast<std::size_t>(std::max(info_.channels, 0)));
+}
+
+AudioReader::AudioReader(const Audio& audio) : info_(audio.info), memory_(&audio) {
+  info_.channels = static_cast<int>(audio.channels.size());
+  info_.frames =
+      audio.channels.empty() ? 0 : static_cast<std::int64_t>(audio.channels.front().size());
+}
+
+AudioReader::~AudioReader() = default;
+
+std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<float>>* out) {
+  const std::size_t nch = static_cast<std::size_t>(info_.channels);
+  out->resize(nch);
+  const std::int64_t want = std::max<std::int64_t>(0, std::min(frames, info_.frames - position_));
+  if (want == 0) return 0;
+  std::vector<std::size_t> first(nch);
+  for (std::size_t c = 0; c < nch; ++c) first[c] = (*out)[c].size();
+  std::int64_t got = 0;
+  if (memory_ != nullptr) {
+    for (std::size_t c = 0; c < nch; ++c) {
+      const std::vector<float>& src = memory_->channels[c];
+      const auto b = src.begin() + static_cast<std::ptrdiff_t>(position_);
+      (*out)[c].insert((*out)[c].end(), b, b + static_cast<std::ptrdiff_t>(want));
+    }
+    got = want;
+  } else {
+    SNDFILE* f = source_->file.get();
+    if (nch == 1) {  // straight into the channel's buffer
+      std::vector<float>& o = (*out)[0];
+      o.resize(first[0] + static_cast<std::size_t>(want));
+      got = std::max<sf_count_t>(0, sf_readf_float(f, o.data() + first[0], want));
+      o.resize(first[0] + static_cast<std::size_t>(got));
+    } else {
+      std::vector<float>& buf = source_->interleaved;
+      buf.resize(static_cast<std::size_t>(want) * nch);
+      got = std::max<sf_count_t>(0, sf_readf_float(f, buf.data(), want));
+      for (std::size_t c = 0; c < nch; ++c) {
+        std::vector<float>& o = (*out)[c];
+        o.resize(first[c] + static_cast<std::size_t>(got));
+        float* dst = o.data() + first[c];
+        for (std::int64_t i = 0; i < got; ++i) dst[i] = buf[static_cast<std::size_t>(i) * nch + c];
       }
     }
-    read_total += got;
-    if (got < want) break;
+    if (got < want) {
+      const std::string why = sf_strerror(f);
+      throw Error(ErrorCode::kNotAudio,
+                  info_.path + ": truncated (header says " + std::to_string(info_.frames) +
+                      " frames, only " + std::to_string(position_ + got) + " could be read" +
+                      (sf_error(f) != SF_ERR_NO_ERROR ? ": " + why : std::string()) + ")");
+    }
   }
-  if (read_total < sfinfo.frames) {
-    std::string why = sf_strerror(f.get());
-    throw Error(ErrorCode::kNotAudio,
-                path + ": truncated (header says " + std::to_string(sfinfo.frames) +
-                    " frames, only " + std::to_string(read_total) + " could be read" +
-                    (sf_error(f.get()) != SF_ERR_NO_ERROR ? ": " + why : std::string()) + ")");
+  if (!trackers_.empty()) {  // a file (not an Audio handed in): check and track every sample
+    constexpr std::size_t kCheckBlock = 4096;
+    for (std::size_t c = 0; c < nch; ++c) {
+      const float* x = (*out)[c].data() + first[c];
+      const std::size_t n = static_cast<std::size_t>(got);
+      for (std::size_t b = 0; b < n; b += kCheckBlock) {
+        const std::size_t e = std::min(n, b + kCheckBlock);
+        bool ok = true;
+        for (std::size_t i = b; i < e; ++i) ok &= std::fabs(x[i]) <= kMaxSampleMagnitude;
+        if (!ok) {
+          for (std::size_t i = b; i < e; ++i)
+            if (!(std::fabs(x[i]) <= kMaxSampleMagnitude))
+              throw Error(
+                  ErrorCode::kBadSamples,
+                  BadSampleMessage(info_.path, x[i], c, position_ + static_cast<std::int64_t>(i),
+                                   info_.sample_rate_hz));
+        }
+        trackers_[c].Update(x + b, e - b);
+      }
+    }
   }
-  a.info.frames = read_total;
+  position_ += got;
+  return got;
+}
 
-  CheckSamples(&a);
+std::int64_t AudioReader::Skip(std::int64_t frames) {
+  std::int64_t skipped = 0;
+  constexpr std::int64_t kBlock = 65536;
+  while (skipped < frames) {
+    for (auto& c : scratch_) c.clear();
+    const std::int64_t got = Read(std::min(kBlock, frames - skipped), &scratch_);
+    if (got == 0) break;
+    skipped += got;
+  }
+  return skipped;
+}
+
+std::vector<ClippingReport> AudioReader::clipping() const {
+  if (trackers_.empty() && memory_ != nullptr) return memory_->clipping;
+  std::vector<ClippingReport> out;
+  for (std::size_t c = 0; c < trackers_.size(); ++c)
+    out.push_back(trackers_[c].Report(static_cast<int>(c)));
+  return out;
+}
+
+Audio ReadAudio(const std::string& path) {
+  AudioReader reader(path);
+  Audio a;
+  a.info = reader.info();
+  a.channels.assign(static_cast<std::size_t>(a.info.channels), std::vector<float>());
+  // (A corrupt header may claim absurd lengths: reserve at most 16 Mi frames up front.)
+  for (auto& c : a.channels)
+    c.reserve(std::min<std::size_t>(static_cast<std::size_t>(a.info.frames), std::size_t{1} << 24));
+  while (reader.Read(std::int64_t{1} << 20, &a.channels) > 0) {
+  }
+  a.info.frames = reader.position();
+  a.clipping = reader.clipping();
   return a;
 }
 

@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 
 #include "bouncecal/acoustic/onsets.hpp"
@@ -31,6 +32,15 @@ constexpr double kGuidedEdgePenalty = 0.15;
 // chosen. The scores of the real stereo recording's channels and mix differ by 7-20 %; with the
 // first 0.5-2.7 s cut off, the mix and channel 0 came within 3 % of each other.
 constexpr double kChannelScoreMargin = 0.1;
+
+// Tracking caps per second of signal (TrackOptions::max_candidates = 300 and max_sequences = 16
+// hold up to 30 s and 64 s): a drop gives up to ~80 onsets (a steel ball's 76 impacts down to
+// the 3 ms resolution limit) in ~8 s and takes at least ~4 s with the pick-up. Measured on a
+// 10-minute synthetic file of 65 steel drops, one every 9.2 s (8.3 onsets/s): 5 onsets/s left
+// 150-190 onsets per 2-minute block untracked (guided search found most of them again); 10/s
+// tracks them all. The caps still bound the tracker's work on a noisy file.
+constexpr double kCandidatesPerS = 10.0;
+constexpr double kSecondsPerDrop = 4.0;
 
 std::string Fmt(const char* f, double v) {
   char buf[64];
@@ -203,34 +213,32 @@ int LongestSequence(const std::vector<Sequence>& seqs) {
 }
 
 // Tracking keeps at most TrackOptions::max_candidates onsets (the strongest) and
-// max_sequences drops, whatever the recording's length: a long recording of many drops loses
-// drops there (a 10-minute file of 65 drops gave 16). Until the caps scale with the length,
-// say so instead of dropping them silently (issue 14).
-void CapWarnings(std::size_t candidates, std::size_t sequences, double duration_s,
+// max_sequences drops per signal (per block of a long recording; the caps grow with the
+// block's length). When either is reached, say so instead of dropping them silently (issue 14).
+// [from_s, to_s): the stretch of the recording the signal covers.
+void CapWarnings(std::size_t candidates, std::size_t sequences, double from_s, double to_s,
                  const TrackOptions& to, std::vector<Warning>* warnings) {
   char msg[400];
   if (candidates > static_cast<std::size_t>(to.max_candidates)) {
-    std::snprintf(
-        msg, sizeof msg,
-        "%zu onset candidates in %.1f s: only the strongest %d entered sequence "
-        "tracking (TrackOptions::max_candidates), so weaker drops or bounces may be "
-        "missing; detect shorter windows of a long recording (DetectOptions::start_s/end_s)",
-        candidates, duration_s, to.max_candidates);
+    std::snprintf(msg, sizeof msg,
+                  "%zu onset candidates in [%.1f, %.1f) s: only the strongest %d entered "
+                  "sequence tracking (TrackOptions::max_candidates), so weaker drops or bounces "
+                  "may be missing",
+                  candidates, from_s, to_s, to.max_candidates);
     warnings->push_back({"detection_capped", msg, -1});
   }
   if (sequences >= static_cast<std::size_t>(to.max_sequences)) {
     std::snprintf(msg, sizeof msg,
-                  "%zu bounce sequences found, the most tracked (TrackOptions::max_sequences): "
-                  "further drops in the %.1f s recording are not reported; detect shorter "
-                  "windows (DetectOptions::start_s/end_s)",
-                  sequences, duration_s);
+                  "%zu bounce sequences found in [%.1f, %.1f) s, the most tracked there "
+                  "(TrackOptions::max_sequences): further drops in it are not reported",
+                  sequences, from_s, to_s);
     warnings->push_back({"detection_capped", msg, -1});
   }
 }
 
 // Stage list for one signal: onsets -> tracking -> guided search -> timing -> plausibility ->
-// re-timing. `clip_peak`: the level at which this signal is clipped (0: not clipped).
-SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double clip_peak,
+// re-timing. (The clipped flags are set once the whole recording was read: MarkClipped.)
+SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double offset_s,
                                const DetectOptions& options) {
   SignalDetection out;
   const double duration_s = static_cast<double>(x.size()) / rate_hz;
@@ -242,14 +250,17 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   const OnsetResult onsets = detector.Detect(x);
   out.hop_samples = detector.hop_samples();
   out.candidates = onsets.onsets;
-  for (Impact& imp : out.candidates)
-    imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
 
   TrackOptions to;
   to.min_interval_s = options.min_interval_s;
   to.min_sequence_impacts = options.min_sequence_impacts;
+  // The caps grow with the signal's length past a minute (a block of a long recording holds
+  // several drops): kCandidatesPerS onsets and a drop per kSecondsPerDrop.
+  to.max_candidates = std::max(to.max_candidates, static_cast<int>(kCandidatesPerS * duration_s));
+  to.max_sequences = std::max(to.max_sequences, static_cast<int>(duration_s / kSecondsPerDrop));
   out.sequences = TrackSequences(out.candidates, duration_s, to);
-  CapWarnings(out.candidates.size(), out.sequences.size(), duration_s, to, &out.warnings);
+  CapWarnings(out.candidates.size(), out.sequences.size(), offset_s, offset_s + duration_s, to,
+              &out.warnings);
   if (options.guided_search) ExtendByTemplate(onsets, x, duration_s, to, &out.sequences);
 
   TimingOptions tim;
@@ -293,10 +304,6 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
     for (Sequence& q : out.sequences)
       if (q.removed.size() != removed_before[key(q)]) time_from_anchors(&q);
   }
-  for (Sequence& q : out.sequences)
-    for (Impact& imp : q.impacts)
-      imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
-
   if (out.sequences.empty()) {
     std::string why = std::to_string(out.candidates.size()) + " onset candidates; ";
     if (out.warnings.empty())
@@ -312,20 +319,41 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   return out;
 }
 
-// The signal of one choice (a channel or the mix) and its clipping level.
-std::vector<float> SignalOf(const Audio& audio, int channel, std::size_t i0, std::size_t i1,
-                            double* clip_peak) {
-  const ChannelSelection sel = channel >= 0
-                                   ? ChannelSelection{ChannelSelection::Kind::kIndex, channel}
-                                   : ChannelSelection{ChannelSelection::Kind::kMix, 0};
-  std::vector<float> x = SelectChannel(audio, sel).samples;
-  *clip_peak = 0.0;
-  for (const ClippingReport& c : audio.clipping)
+// The signal of one choice (a channel or the mix) over frames [from, to) of a block.
+void SignalOf(const std::vector<std::vector<float>>& block, int channel, std::size_t from,
+              std::size_t to, std::vector<float>* x) {
+  if (channel >= 0) {
+    const std::vector<float>& c = block[static_cast<std::size_t>(channel)];
+    x->assign(c.begin() + static_cast<std::ptrdiff_t>(from),
+              c.begin() + static_cast<std::ptrdiff_t>(to));
+    return;
+  }
+  // The mix: the mean of the channels (SelectChannel's kMix).
+  const double nch = static_cast<double>(block.size());
+  x->resize(to - from);
+  for (std::size_t i = from; i < to; ++i) {
+    double acc = 0.0;
+    for (const std::vector<float>& c : block) acc += c[i];
+    (*x)[i - from] = static_cast<float>(acc / nch);
+  }
+}
+
+// The level from which an impact of `channel` (-1: the mix) counts as clipped (0: none).
+double ClipPeak(const std::vector<ClippingReport>& clipping, int channel, std::size_t channels) {
+  double clip_peak = 0.0;
+  for (const ClippingReport& c : clipping)
     if (c.clipped() && (channel < 0 || c.channel == channel))
-      *clip_peak =
-          channel < 0 ? 0.999 * c.peak / static_cast<double>(audio.channels.size()) : c.peak;
-  return std::vector<float>(x.begin() + static_cast<std::ptrdiff_t>(i0),
-                            x.begin() + static_cast<std::ptrdiff_t>(i1));
+      clip_peak = channel < 0 ? 0.999 * c.peak / static_cast<double>(channels) : c.peak;
+  return clip_peak;
+}
+
+void MarkClipped(double clip_peak, SignalDetection* d) {
+  auto mark = [&](Impact& imp) {
+    imp.clipped = clip_peak > 0.0 && imp.amplitude >= 0.999 * clip_peak;
+  };
+  for (Impact& imp : d->candidates) mark(imp);
+  for (Sequence& q : d->sequences)
+    for (Impact& imp : q.impacts) mark(imp);
 }
 
 void ShiftTimes(double dt, SignalDetection* d) {
@@ -361,23 +389,196 @@ bool DetectOptions::IsValid(std::string* error) const {
   if (end_s && (!std::isfinite(*end_s) || !(*end_s > start_s)))
     return fail("DetectOptions::end_s = " + Fmt("%g", *end_s) +
                 ": must be a finite time after start_s = " + Fmt("%g", start_s) + " s");
+  if (!(max_block_s >= 4.0) || !std::isfinite(max_block_s))
+    return fail("DetectOptions::max_block_s = " + Fmt("%g", max_block_s) +
+                ": must be a finite time >= 4 s");
   if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
     return fail("DetectOptions::min_snr_db = " + Fmt("%g", min_snr_db) +
                 ": must be in [-120, 120] dB");
   return true;
 }
 
+namespace {
+
+// Long recordings are detected in blocks of at most DetectOptions::max_block_s (and
+// kMaxBlockFrames frames: 44 s at 384 kHz), so that memory does not grow with the length. A
+// block ends at the quietest moment of its last quarter (at most kMaxCutSearchS): between two
+// drops, not inside a sequence, whose impacts come at most about a second apart. Each block
+// keeps kBlockMarginS of audio on both sides of its cuts as context (whitening fit, running
+// medians); a sequence belongs to the block its first impact is in.
+constexpr std::int64_t kMaxBlockFrames = std::int64_t{1} << 24;
+constexpr double kBlockMarginS = 0.5;
+constexpr double kMaxCutSearchS = 30.0;
+// The quiet measure of a cut: the largest energy of the signal's first difference (a high-pass
+// that keeps impact attacks) in 10 ms frames within +-kCutQuietS of it.
+constexpr double kCutFrameS = 0.01;
+constexpr double kCutQuietS = 0.5;
+
+// The frame (block index) of the quietest moment in [lo, hi) of the block.
+std::size_t QuietestCut(const std::vector<std::vector<float>>& block, std::size_t lo,
+                        std::size_t hi, double rate_hz) {
+  const std::size_t fl = std::max<std::size_t>(1, static_cast<std::size_t>(kCutFrameS * rate_hz));
+  const std::size_t reach = static_cast<std::size_t>(kCutQuietS / kCutFrameS);
+  const std::size_t n = block.front().size();
+  // Frames over [lo - reach frames, hi + reach frames), clipped to the block.
+  const std::size_t f0 = lo > reach * fl ? lo - reach * fl : 1;
+  const std::size_t f1 = std::min(n, hi + reach * fl);
+  const std::size_t nf = (f1 - f0) / fl;
+  if (nf == 0) return lo;
+  std::vector<double> energy(nf, 0.0);
+  for (const std::vector<float>& c : block)
+    for (std::size_t f = 0; f < nf; ++f) {
+      double e = 0.0;
+      for (std::size_t i = f0 + f * fl; i < f0 + (f + 1) * fl; ++i) {
+        const double d = static_cast<double>(c[i]) - c[i - 1];
+        e += d * d;
+      }
+      energy[f] += e;
+    }
+  // The latest frame whose +-reach neighbourhood has the smallest peak energy.
+  std::size_t best = lo;
+  double best_score = std::numeric_limits<double>::infinity();
+  for (std::size_t f = 0; f < nf; ++f) {
+    const std::size_t centre = f0 + f * fl + fl / 2;
+    if (centre < lo || centre >= hi) continue;
+    double score = 0.0;
+    for (std::size_t g = f > reach ? f - reach : 0; g < std::min(nf, f + reach + 1); ++g)
+      score = std::max(score, energy[g]);
+    if (score <= best_score) {
+      best_score = score;
+      best = centre;
+    }
+  }
+  return best;
+}
+
+// One candidate signal's detections over the blocks read so far.
+struct SignalAcrossBlocks {
+  SignalDetection merged;
+  bool sound = false;   // a block was not silent
+  double peak = 0.0;    // max |x| over the blocks
+  std::string failure;  // the last block's reason for finding no sequence
+};
+
+// Adds what one block found (times already in file seconds) to `into`: the candidates in
+// [own_lo_s, own_hi_s) and the sequences that start there. A sequence with impacts past
+// own_hi_s was cut by the block's end: block_split.
+void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, bool last_block,
+                SignalAcrossBlocks* into) {
+  SignalDetection& m = into->merged;
+  m.hop_samples = d.hop_samples;
+  if (!d.failure.empty()) into->failure = d.failure;
+  for (const Impact& i : d.candidates)
+    if (i.time_s >= own_lo_s && i.time_s < own_hi_s) m.candidates.push_back(i);
+  for (Sequence& q : d.sequences) {
+    const double t0 = q.impacts.front().time_s;
+    if (t0 < own_lo_s || t0 >= own_hi_s) continue;
+    if (!last_block && q.impacts.back().time_s >= own_hi_s) {
+      char msg[300];
+      std::snprintf(msg, sizeof msg,
+                    "the sequence from %.4f s runs past %.4f s, where the recording was cut "
+                    "into analysis blocks (DetectOptions::max_block_s): its impacts after the "
+                    "cut may be missing or reported as a separate sequence",
+                    t0, own_hi_s);
+      d.warnings.push_back({"block_split", msg, -1});
+    }
+    m.sequences.push_back(std::move(q));
+  }
+  for (Warning& w : d.warnings) {
+    const bool seen = std::any_of(m.warnings.begin(), m.warnings.end(), [&](const Warning& o) {
+      return o.code == w.code && o.message == w.message;
+    });
+    if (!seen) m.warnings.push_back(std::move(w));
+  }
+}
+
+// Reads frames [i0, i1) of the recording block by block and runs every candidate signal on
+// each block (DetectInSignal), merging what each finds (MergeBlock); then reads the rest of the
+// file, so that every sample is checked and the clipping reports are complete.
+void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
+                  const std::vector<int>& choices, const DetectOptions& options,
+                  std::vector<SignalAcrossBlocks>* signals) {
+  const double rate = reader->info().sample_rate_hz;
+  const std::int64_t cap = std::max<std::int64_t>(
+      16, std::min(kMaxBlockFrames, static_cast<std::int64_t>(options.max_block_s * rate)));
+  const std::int64_t margin = static_cast<std::int64_t>(kBlockMarginS * rate);
+  const std::int64_t search = std::min(cap / 4, static_cast<std::int64_t>(kMaxCutSearchS * rate));
+  reader->Skip(i0);
+  std::vector<std::vector<float>> buf(static_cast<std::size_t>(reader->info().channels));
+  std::vector<float> x;
+  std::int64_t buf_start = i0;
+  double own_lo_s = -std::numeric_limits<double>::infinity();
+  for (;;) {
+    // Fill the block up to `cap` frames (or the window's end).
+    for (;;) {
+      const std::int64_t have = static_cast<std::int64_t>(buf.front().size());
+      const std::int64_t want = std::min(cap - have, i1 - (buf_start + have));
+      if (want <= 0 || reader->Read(want, &buf) == 0) break;
+    }
+    const std::int64_t buf_end = buf_start + static_cast<std::int64_t>(buf.front().size());
+    const bool last = buf_end >= i1 || buf_end - buf_start < cap;
+    std::int64_t cut = buf_end, block_end = buf_end;
+    if (!last) {
+      const std::size_t lo = static_cast<std::size_t>(buf_end - search - buf_start);
+      const std::size_t hi = static_cast<std::size_t>(buf_end - margin - buf_start);
+      cut = buf_start + static_cast<std::int64_t>(QuietestCut(buf, lo, hi, rate));
+      block_end = std::min(buf_end, cut + margin);
+    }
+    const double own_hi_s =
+        last ? std::numeric_limits<double>::infinity() : static_cast<double>(cut) / rate;
+    for (std::size_t ci = 0; ci < choices.size(); ++ci) {
+      SignalOf(buf, choices[ci], 0, static_cast<std::size_t>(block_end - buf_start), &x);
+      double peak = 0.0;
+      for (float v : x) peak = std::max(peak, static_cast<double>(std::fabs(v)));
+      SignalAcrossBlocks& sig = (*signals)[ci];
+      sig.peak = std::max(sig.peak, peak);
+      if (peak <= kSilencePeak) continue;
+      sig.sound = true;
+      const double offset_s = static_cast<double>(buf_start) / rate;
+      SignalDetection d = DetectInSignal(x, rate, offset_s, options);
+      ShiftTimes(offset_s, &d);
+      MergeBlock(std::move(d), own_lo_s, own_hi_s, last, &sig);
+    }
+    if (last) break;
+    // The next block starts kBlockMarginS before the cut.
+    own_lo_s = static_cast<double>(cut) / rate;
+    const std::int64_t next = std::max(buf_start, cut - margin);
+    for (std::vector<float>& c : buf)
+      c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(next - buf_start));
+    buf_start = next;
+  }
+  reader->Skip(std::numeric_limits<std::int64_t>::max());
+}
+
+}  // namespace
+
 DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
-  const std::string& path = audio.info.path;
-  DetectionResult res;
-  res.audio = audio.info;
-  res.clipping = audio.clipping;
   if (audio.channels.empty() || audio.channels.front().empty())
+    throw Error(ErrorCode::kNotAudio, audio.info.path + ": no samples");
+  AudioReader reader(audio);
+  return DetectImpacts(reader, options);
+}
+
+DetectionResult DetectImpactsInFile(const std::string& path, const DetectOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
+  AudioReader reader(path);
+  return DetectImpacts(reader, options);
+}
+
+DetectionResult DetectImpacts(AudioReader& reader, const DetectOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
+  const AudioInfo& info = reader.info();
+  const std::string& path = info.path;
+  DetectionResult res;
+  res.audio = info;
+  if (info.channels < 1 || info.frames <= 0)
     throw Error(ErrorCode::kNotAudio, path + ": no samples");
-  const double rate = audio.info.sample_rate_hz;
-  const std::size_t frames = audio.channels.front().size();
+  const double rate = info.sample_rate_hz;
+  const std::int64_t frames = info.frames;
   const double duration_s = static_cast<double>(frames) / rate;
 
   // 1. Window.
@@ -388,20 +589,22 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
     throw Error(ErrorCode::kNoBounces, path + ": the window " + window +
                                            " starts after the recording ends (" +
                                            Fmt("%.3f", duration_s) + " s)");
-  const std::size_t i0 = static_cast<std::size_t>(std::ceil(options.start_s * rate));
-  const std::size_t i1 =
-      options.end_s ? std::min(frames, static_cast<std::size_t>(std::ceil(*options.end_s * rate)))
+  const std::int64_t i0 = static_cast<std::int64_t>(std::ceil(options.start_s * rate));
+  const std::int64_t i1 =
+      options.end_s ? std::min(frames, static_cast<std::int64_t>(std::ceil(*options.end_s * rate)))
                     : frames;
   res.start_s = static_cast<double>(i0) / rate;
   res.end_s = static_cast<double>(i1) / rate;
-  const double shift_s = res.start_s;
 
   // 2. Which signals to try.
   std::vector<int> choices;
-  const int nch = static_cast<int>(audio.channels.size());
+  const int nch = info.channels;
   switch (options.channel.kind) {
     case ChannelSelection::Kind::kIndex:
-      if (options.channel.index >= nch) SelectChannel(audio, options.channel);  // throws kUsage
+      if (options.channel.index >= nch)
+        throw Error(ErrorCode::kUsage, path + ": channel " + std::to_string(options.channel.index) +
+                                           " out of range (" + std::to_string(nch) + " channel" +
+                                           (nch == 1 ? "" : "s") + ", 0-based)");
       choices = {options.channel.index};
       break;
     case ChannelSelection::Kind::kMix:
@@ -413,31 +616,37 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
       break;
   }
 
-  // 3. Detect in each; keep the best-scoring signal.
+  // 3. Detect in each signal, block by block.
+  std::vector<SignalAcrossBlocks> signals(choices.size());
+  DetectBlocks(&reader, i0, i1, choices, options, &signals);
+  res.clipping = reader.clipping();
+
+  // 4. Keep the best-scoring signal.
   int best = -1;
   SignalDetection chosen;
   std::string failures;
   bool any_sound = false;
   for (std::size_t ci = 0; ci < choices.size(); ++ci) {
-    double clip_peak = 0.0;
-    const std::vector<float> x = SignalOf(audio, choices[ci], i0, i1, &clip_peak);
-    double peak = 0.0;
-    for (float v : x) peak = std::max(peak, static_cast<double>(std::fabs(v)));
+    SignalAcrossBlocks& sig = signals[ci];
+    SignalDetection& d = sig.merged;
+    MarkClipped(ClipPeak(res.clipping, choices[ci], static_cast<std::size_t>(nch)), &d);
     ChannelScore cs;
     cs.channel = choices[ci];
-    if (peak <= kSilencePeak) {
-      cs.failure = "silent (peak |x| = " + Fmt("%.3g", peak) + ")";
+    if (!sig.sound) {
+      cs.failure = "silent (peak |x| = " + Fmt("%.3g", sig.peak) + ")";
     } else {
       any_sound = true;
-      SignalDetection d = DetectInSignal(x, rate, clip_peak, options);
-      ShiftTimes(shift_s, &d);
-      cs.failure = d.failure;
-      cs.score = d.score;
-      if (d.failure.empty()) {
+      if (d.sequences.empty()) {
+        d.failure = sig.failure.empty() ? std::string("no bounce sequence") : sig.failure;
+      } else {
+        d.score =
+            SequenceScore(d.sequences[static_cast<std::size_t>(LongestSequence(d.sequences))]);
         const Sequence& m = d.sequences[static_cast<std::size_t>(LongestSequence(d.sequences))];
         cs.impacts = static_cast<int>(m.impacts.size());
         cs.first_impact_s = m.impacts.front().time_s;
       }
+      cs.failure = d.failure;
+      cs.score = d.score;
       // A later signal (channel 1, ..., then the mix) replaces the one chosen so far only when it
       // is clearly better (kChannelScoreMargin): near ties would otherwise flip with the weak
       // tail of a sequence, i.e. with how much audio surrounds it.
@@ -476,7 +685,7 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
       for (Impact& im : q.impacts) CoarsenToHop(&im, chosen.hop_samples, rate);
   }
   res.main_sequence = LongestSequence(res.sequences);
-  for (const ClippingReport& c : audio.clipping)
+  for (const ClippingReport& c : res.clipping)
     if (c.clipped())
       res.warnings.push_back({"clipped",
                               "channel " + std::to_string(c.channel) + " is clipped (" +
@@ -484,15 +693,15 @@ DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) 
                                   " samples at its extreme value); onsets are still usable, "
                                   "amplitudes are not",
                               -1});
-  if (audio.info.lossy) {
-    const double delay_ms = 1e3 * static_cast<double>(audio.info.codec_delay_samples) / rate;
+  if (info.lossy) {
+    const double delay_ms = 1e3 * static_cast<double>(info.codec_delay_samples) / rate;
     res.warnings.push_back(
         {"codec_delay",
-         "decoded from lossy " + audio.info.subtype + " (" + audio.info.format + "): " +
-             (audio.info.codec_delay_samples > 0
-                  ? std::to_string(audio.info.codec_delay_samples) + " priming samples (" +
+         "decoded from lossy " + info.subtype + " (" + info.format + "): " +
+             (info.codec_delay_samples > 0
+                  ? std::to_string(info.codec_delay_samples) + " priming samples (" +
                         Fmt("%.2f", delay_ms) + " ms) " +
-                        (audio.info.codec_delay_trimmed
+                        (info.codec_delay_trimmed
                              ? "were trimmed as the file says"
                              : "are declared but were not trimmed: times are late by that much")
                   : std::string("no codec delay stated")) +

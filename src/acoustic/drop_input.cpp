@@ -3,6 +3,8 @@
 
 #include <cstdio>
 #include <iterator>
+#include <limits>
+#include <optional>
 
 #include "bouncecal/acoustic/impacts_file.hpp"
 #include "bouncecal/core/error.hpp"
@@ -69,18 +71,22 @@ LoadedRecording LoadRecording(const std::string& recording, const Audio* audio,
   LoadedRecording out;
   out.name = recording.empty() ? impacts_file : recording;
   out.impacts_file = impacts_file;
-  Audio read;
-  if (!audio && !recording.empty()) {
-    read = ReadAudio(recording);
-    audio = &read;
-  }
   if (impacts_file.empty()) {
-    out.result = DetectImpacts(*audio, opt);
+    // Without samples in memory the recording is read block by block.
+    out.result = audio ? DetectImpacts(*audio, opt) : DetectImpactsInFile(recording, opt);
   } else {
+    std::optional<AudioInfo> info;
+    if (audio) {
+      info = audio->info;
+    } else if (!recording.empty()) {
+      AudioReader reader(recording);  // every sample is checked, none is kept
+      reader.Skip(std::numeric_limits<std::int64_t>::max());
+      info = reader.info();
+    }
     ImpactsFileOptions io;
-    if (audio) io.duration_s = audio->info.duration_s();
+    if (info) io.duration_s = info->duration_s();
     ImpactsFile f = ReadImpactsFile(impacts_file, io);
-    if (audio) out.result.audio = audio->info;
+    if (info) out.result.audio = *info;
     out.result.sequences = std::move(f.sequences);
     if (opt.start_s > 0.0 || opt.end_s) ApplyWindow(impacts_file, opt, &out.result.sequences);
     int best = 0;

@@ -38,6 +38,22 @@ double WindowedSinc(double d) {
   return s * (0.5 + 0.5 * std::cos(std::numbers::pi * d / static_cast<double>(kSincHalf)));
 }
 
+// sum_k a[k] b[k] in double, with four independent partial sums: the compiler may not reorder
+// a floating-point sum itself, and a single running sum is one dependent add per product.
+template <typename A, typename B>
+double Dot(const A* a, const B* b, std::size_t n) {
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    s0 += static_cast<double>(a[k]) * static_cast<double>(b[k]);
+    s1 += static_cast<double>(a[k + 1]) * static_cast<double>(b[k + 1]);
+    s2 += static_cast<double>(a[k + 2]) * static_cast<double>(b[k + 2]);
+    s3 += static_cast<double>(a[k + 3]) * static_cast<double>(b[k + 3]);
+  }
+  for (; k < n; ++k) s0 += static_cast<double>(a[k]) * static_cast<double>(b[k]);
+  return (s0 + s1) + (s2 + s3);
+}
+
 // Robust rms (Gaussian: 1.4826 * median |x|) of p[0, n).
 double RobustRms(const float* p, std::size_t n) {
   if (n == 0) return 0.0;
@@ -108,7 +124,11 @@ double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, dou
   // 20 ms window) at a quarter of the work.
   for (long l = lo; l <= hi; l += kNoiseStride) {
     double acc = 0.0;
-    for (long j = 0; j < L; ++j) acc += g[static_cast<std::size_t>(j)] * nb.at(l + j);
+    if (l >= nb.begin && l + L <= nb.end()) {
+      acc = Dot(g.data(), nb.w.data() + (l - nb.begin), static_cast<std::size_t>(L));
+    } else {
+      for (long j = 0; j < L; ++j) acc += g[static_cast<std::size_t>(j)] * nb.at(l + j);
+    }
     p.push_back(std::fabs(acc));
   }
   if (p.size() < 8) return 0.0;
@@ -214,13 +234,9 @@ std::vector<double> NeighbourhoodPredictor(const std::vector<float>& x,
   for (long a : anchors) {
     const long lo = std::max(0L, a - before), hi = std::min(n, a + after);
     if (hi - lo <= 4L * order) continue;
-    for (int lag = 0; lag <= order; ++lag) {
-      double acc = 0.0;
-      for (long i = lo + lag; i < hi; ++i)
-        acc += static_cast<double>(x[static_cast<std::size_t>(i)]) *
-               x[static_cast<std::size_t>(i - lag)];
-      rw[static_cast<std::size_t>(lag)] = acc;
-    }
+    for (int lag = 0; lag <= order; ++lag)
+      rw[static_cast<std::size_t>(lag)] =
+          Dot(x.data() + lo + lag, x.data() + lo, static_cast<std::size_t>(hi - lo - lag));
     if (!(rw[0] > 0.0)) continue;
     // Each neighbourhood counts once, whatever its level.
     for (std::size_t k = 0; k < r.size(); ++k) r[k] += rw[k] / rw[0];
@@ -238,7 +254,15 @@ std::vector<float> WhitenSegment(const std::vector<float>& x, const std::vector<
                                  long begin, long end) {
   std::vector<float> out(static_cast<std::size_t>(std::max(0L, end - begin)), 0.0f);
   const long n = static_cast<long>(x.size());
+  // Taps reversed, so that the inner product runs forward over x (Dot).
+  const std::vector<double> rev(a.rbegin(), a.rend());
+  const long taps = static_cast<long>(a.size());
   for (long i = begin; i < end; ++i) {
+    if (i - taps + 1 >= 0 && i < n) {  // all of the taps inside x
+      out[static_cast<std::size_t>(i - begin)] = static_cast<float>(
+          Dot(rev.data(), x.data() + (i - taps + 1), static_cast<std::size_t>(taps)));
+      continue;
+    }
     double acc = 0.0;
     for (std::size_t j = 0; j < a.size(); ++j) {
       const long m = i - static_cast<long>(j);

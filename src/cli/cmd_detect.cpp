@@ -139,8 +139,10 @@ void Run(const DetectArgs& a) {
     const std::string& imp = inputs[n].second;
     const std::string name = rec.empty() ? imp : rec;
     try {
+      // The samples are kept only for --click-track; otherwise the recording is read block by
+      // block (memory independent of its length).
       std::optional<Audio> audio;
-      if (!rec.empty()) audio = ReadAudio(rec);
+      if (!rec.empty() && !a.click_track.empty()) audio = ReadAudio(rec);
       // Options the shared flags do not cover.
       DetectFlags f = a.detect;
       LoadedRecording l;
@@ -149,7 +151,7 @@ void Run(const DetectArgs& a) {
         o.hop_s = a.hop_ms * 1e-3;
         o.refine = !a.no_refine;
         l.name = name;
-        l.result = DetectImpacts(*audio, o);
+        l.result = audio ? DetectImpacts(*audio, o) : DetectImpactsInFile(rec, o);
         l.chosen = ChooseSequences(l.result.sequences, ParseSequenceChoice(f.sequence), name);
       } else {
         l = LoadRecording(rec, audio ? &*audio : nullptr, imp, f);

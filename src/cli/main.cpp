@@ -1,4 +1,6 @@
 // bouncecal — calibrate contact-law damping from the sound of a bouncing ball.
+#include <malloc.h>
+
 #include <cstdio>
 #include <exception>
 
@@ -23,9 +25,22 @@ void QuietThirdPartyLogging(const char* argv0) {
   google::InitGoogleLogging(argv0);
 }
 
+// Detection allocates a few buffers of one block's length (up to 2 minutes of audio, ~23 MB
+// each at 48 kHz) per block and candidate signal. glibc maps such sizes freshly (mmap) and
+// returns freed heap tops to the kernel, so every block paid its page faults again: on a
+// 10-minute recording 0.9 s of system time, mostly faults, against 0.4 s with the heap kept.
+// Allocations up to glibc's largest mmap threshold (32 MB on 64-bit) come from the heap and
+// freed memory stays mapped for the next block; the peak is unchanged. Process-wide malloc
+// tuning belongs to the program, not the library.
+void KeepLargeBuffersMapped() {
+  mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
+  mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  KeepLargeBuffersMapped();
   QuietThirdPartyLogging(argv[0]);
   // A SIGINT/SIGTERM mid-write removes the temporary file; finished outputs stay complete.
   bouncecal::InstallTempFileCleanupOnSignals();

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -63,6 +64,51 @@ struct Audio {
   AudioInfo info;
   std::vector<std::vector<float>> channels;  // channels[c][frame]
   std::vector<ClippingReport> clipping;      // one per channel
+};
+
+// A recording read block by block, so that detection of any length needs memory for one block
+// only (detect.hpp: DetectImpacts on a reader). Opening does every check ReadAudio does on the
+// header (missing file, directory, empty, not audio, truncated data chunk, rate, channels);
+// Read checks each sample as it passes (NaN/Inf, beyond 1e6 x full scale: Error(kBadSamples)
+// naming channel, frame and time) and keeps each channel's clipping report up to date; the
+// end of the data before the header's frame count is Error(kNotAudio, "truncated ..."), raised
+// by the Read that meets it. Formats only FFmpeg decodes (m4a/AAC, MP3, ...) are decoded whole
+// on opening (phone recordings: minutes) and then served block by block.
+//
+//   AudioReader r("drop.flac");
+//   std::vector<std::vector<float>> block;            // block[c][frame]
+//   while (r.Read(65536, &block) > 0) { ... block.front().size() frames appended ... }
+//
+// ReadAudio is this reader read to the end. A reader on an Audio already in memory serves its
+// samples as they are (no checks: ReadAudio made them) with its clipping reports.
+class AudioReader {
+ public:
+  explicit AudioReader(const std::string& path);
+  explicit AudioReader(const Audio& audio);  // `audio` must outlive the reader
+  ~AudioReader();
+  AudioReader(const AudioReader&) = delete;
+  AudioReader& operator=(const AudioReader&) = delete;
+
+  const AudioInfo& info() const { return info_; }
+  std::int64_t position() const { return position_; }  // frames read so far
+  // Appends up to `frames` frames to (*out)[c] (out gets one vector per channel); returns how
+  // many were read, 0 at the end of the data.
+  std::int64_t Read(std::int64_t frames, std::vector<std::vector<float>>* out);
+  // Reads (and checks) `frames` frames without keeping them; returns how many there were.
+  std::int64_t Skip(std::int64_t frames);
+  // Clipping of the frames read so far (every frame once Read returned 0), one per channel.
+  std::vector<ClippingReport> clipping() const;
+
+ private:
+  struct Source;
+  struct Tracker;
+  std::int64_t ReadChecked(std::int64_t frames, std::vector<std::vector<float>>* out);
+  AudioInfo info_;
+  std::int64_t position_ = 0;
+  std::unique_ptr<Source> source_;
+  std::vector<Tracker> trackers_;
+  const Audio* memory_ = nullptr;  // the in-memory recording served, if any
+  std::vector<std::vector<float>> scratch_;
 };
 
 // libsndfile first, FFmpeg when libsndfile cannot open the file. MPEG audio (MP3: an ID3 tag or

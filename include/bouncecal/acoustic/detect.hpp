@@ -8,9 +8,8 @@
 // channels, every channel and the mix go through it and the one whose main sequence scores
 // best (ChannelScore) is used. Times are seconds from the start of the file.
 //
-//   Audio a = ReadAudio(path);
-//   DetectionResult r = DetectImpacts(a, DetectOptions{});
-//   for (const Impact& i : r.main().impacts) ... i.time_s, i.sigma_s
+//   DetectionResult r = DetectImpactsInFile(path, DetectOptions{});  // or DetectImpacts(audio,
+//   ...) for (const Impact& i : r.main().impacts) ... i.time_s, i.sigma_s
 //
 // Throws Error(kSilence) for a silent recording (or window) and Error(kNoBounces) when no
 // plausible sequence of at least DetectOptions::min_sequence_impacts impacts is found (the
@@ -67,6 +66,11 @@ struct DetectOptions {
   // soft rubber ball's slow attacks: its recall fell from 0.52 to 0.40). Noise alone gives
   // 0 +- 1.2 dB, so this removes only members with no onset at all.
   double min_snr_db = -3.0;
+  // Recordings (windows) longer than this are detected in blocks of at most this length (and at
+  // most 2^24 frames: 44 s at 384 kHz), cut at the quietest moment of each block's last quarter
+  // (between drops), so that memory stays bounded whatever the length. Shorter ones are detected
+  // whole. A sequence that runs across a cut gets the warning block_split.
+  double max_block_s = 120.0;
   bool IsValid(std::string* error) const;
 };
 
@@ -94,6 +98,11 @@ struct DetectionResult {
 };
 
 DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options);
+// The same on a recording read block by block (memory: one block, whatever the length). Every
+// sample of the file is read and checked, also outside [start_s, end_s).
+DetectionResult DetectImpacts(AudioReader& reader, const DetectOptions& options);
+// Opens `path` (AudioReader) and detects; what ReadAudio + DetectImpacts give, in bounded memory.
+DetectionResult DetectImpactsInFile(const std::string& path, const DetectOptions& options);
 
 // Which sequences of a recording a user wants: the main (longest) one, all of them (several
 // drops in one file: separate drops for analyze/calibrate), or one by 0-based index.

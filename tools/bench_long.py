@@ -1,0 +1,106 @@
+#!/usr/bin/env python3
+"""bench_long — what detection of a long recording costs: time, system time and peak memory
+against the recording's length and rate, side by side with aubioonset on the same file.
+
+    python3 tools/bench_long.py                        # 1, 10, 30, 60 min at 48 and 384 kHz
+    python3 tools/bench_long.py --minutes 1 10 --rates 48000 --bouncecal build/bouncecal
+
+Each file is one synthesized minute of steel-on-copper drops (`bouncecal synth --drops 6
+--duration 60`, 16-bit WAV) repeated end to end, so an N-minute file holds 6 N drops. Every
+figure is a whole process as a user waits for it (`/usr/bin/time`: wall, user and system CPU,
+maximum resident set size), the run with the least CPU time (user + system) of --repeat; `bouncecal detect --json` is checked to
+find every drop (one sequence per drop). aubioonset runs with `-H 256` (its hop of 5.3 ms at
+48 kHz; bouncecal's onsets are ~0.33 ms) on the same file in the same loop, so the ratio column
+compares two measurements taken side by side; it compares CPU time (user + system), which a
+shared machine's load disturbs far less than wall time. Prints one Markdown table.
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import wave
+
+
+def timed(cmd, stdout_path=None):
+    """Runs cmd under /usr/bin/time; returns (wall_s, user_s, sys_s, max_rss_kb)."""
+    fmt = "%e %U %S %M"
+    with open(stdout_path or os.devnull, "wb") as out:
+        p = subprocess.run(["/usr/bin/time", "-f", fmt] + cmd, stdout=out,
+                           stderr=subprocess.PIPE, check=False)
+    last = p.stderr.decode(errors="replace").strip().splitlines()[-1]
+    if p.returncode not in (0, 12):
+        sys.exit("bench_long: %s failed (exit %d): %s" % (cmd[0], p.returncode, last))
+    wall, user, system, rss = last.split()
+    return float(wall), float(user), float(system), int(rss)
+
+
+def make_file(bouncecal, work, rate, minutes, cache):
+    """An N-minute WAV at `rate`: one synthesized minute repeated."""
+    one = cache.get(rate)
+    if one is None:
+        one = os.path.join(work, "one_%d.wav" % rate)
+        subprocess.run([bouncecal, "synth", "-o", one, "--force", "--preset", "steel-copper",
+                        "--drops", "6", "--drop-gap", "2", "--duration", "60", "--rate",
+                        str(rate), "--seed", "3"], check=True, stdout=subprocess.DEVNULL)
+        cache[rate] = one
+    path = os.path.join(work, "long_%d_%dmin.wav" % (rate, minutes))
+    with wave.open(one, "rb") as src:
+        params = src.getparams()
+        frames = src.readframes(src.getnframes())
+    with wave.open(path, "wb") as dst:
+        dst.setparams(params)
+        for _ in range(minutes):
+            dst.writeframes(frames)
+    return path
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--bouncecal", default="build/bouncecal")
+    ap.add_argument("--minutes", type=int, nargs="+", default=[1, 10, 30, 60])
+    ap.add_argument("--rates", type=int, nargs="+", default=[48000, 384000])
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--no-aubio", action="store_true")
+    ap.add_argument("--work", default=None, help="directory for the files (default: a temp dir)")
+    a = ap.parse_args()
+    aubio = None if a.no_aubio else shutil.which("aubioonset")
+    work = a.work or tempfile.mkdtemp(prefix="bench_long_")
+    os.makedirs(work, exist_ok=True)
+    cache = {}
+    print("| rate | length | drops found | bouncecal wall | user | system | peak memory "
+          "| aubioonset -H 256 wall | user + system | peak memory "
+          "| aubio / bouncecal (CPU) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for rate in a.rates:
+        for minutes in a.minutes:
+            path = make_file(a.bouncecal, work, rate, minutes, cache)
+            out_json = os.path.join(work, "detect.json")
+            best = None
+            for _ in range(a.repeat):
+                t = timed([a.bouncecal, "detect", "--json", path], out_json)
+                best = t if best is None or t[1] + t[2] < best[1] + best[2] else best
+            with open(out_json) as f:
+                found = len(json.load(f)["sequences"])
+            ab = None
+            if aubio:
+                for _ in range(a.repeat):
+                    t = timed([aubio, "-i", path, "-H", "256"])
+                    ab = t if ab is None or t[1] + t[2] < ab[1] + ab[2] else ab
+            cpu = best[1] + best[2]
+            aub = ("%.2f s | %.2f s | %.0f MB | %.2f" %
+                   (ab[0], ab[1] + ab[2], ab[3] / 1024, (ab[1] + ab[2]) / max(cpu, 1e-3))
+                   if ab else "- | - | - | -")
+            print("| %d kHz | %d min | %d of %d | %.2f s | %.2f s | %.2f s | %.0f MB | %s |" %
+                  (rate // 1000, minutes, found, 6 * minutes, best[0], best[1], best[2],
+                   best[3] / 1024, aub))
+            sys.stdout.flush()
+            os.remove(path)
+    if not a.work:
+        shutil.rmtree(work)
+
+
+if __name__ == "__main__":
+    main()

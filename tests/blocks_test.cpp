@@ -239,5 +239,62 @@ TEST(DetectBlocks, ASequenceCutByABlockIsAWarning) {
   EXPECT_NE(why.find("max_block_s"), std::string::npos) << why;
 }
 
+// Recordings above 64 kHz are detected on a low-passed, decimated copy (the impact sound is
+// below ~20 kHz; above it the whitening weighed noise like clicks). Before: a rendered steel
+// drop gave 53 impacts at 44.1 kHz, 18 at 192 kHz and no sequence at 384 kHz. Now each rate
+// finds about as many as 48 kHz (measured 53 to 56 of 76), every interval within a few
+// microseconds of the truth (measured median 1 us), and amplitudes are the full-rate peaks.
+TEST(DetectRates, HighRatesAreDetectedLikeFortyEightKilohertz) {
+  for (double rate : {96000.0, 192000.0, 384000.0}) {
+    SynthSpec spec = SynthPreset("steel-copper");
+    spec.render.sample_rate_hz = rate;
+    const SynthResult s = Synthesize(spec);
+    Audio a;
+    a.info.path = "rate.wav";
+    a.info.sample_rate_hz = rate;
+    a.info.channels = 1;
+    a.channels = s.recording.channels;
+    a.info.frames = static_cast<std::int64_t>(a.channels[0].size());
+    a.clipping.push_back(AnalyzeClipping(a.channels[0], 0));
+    const DetectionResult r = DetectImpacts(a, DetectOptions{});
+    ASSERT_EQ(r.sequences.size(), 1u) << rate;
+    const Sequence& q = r.main();
+    EXPECT_GE(q.impacts.size(), 48u) << rate;
+    // Intervals against the truth's, between members matched to a true onset within 1 ms (at
+    // least 95 % of them: the unresolvable tail may take a wrong one, measured 1 of 53).
+    std::vector<double> truth;
+    for (const RenderedImpact& i : s.recording.drops[0]) truth.push_back(i.onset_s);
+    std::vector<double> err;
+    int matched = 0;
+    double prev_t = -1.0, prev_truth = 0.0;
+    for (const Impact& i : q.impacts) {
+      const auto it = std::min_element(truth.begin(), truth.end(), [&](double x, double y) {
+        return std::fabs(x - i.time_s) < std::fabs(y - i.time_s);
+      });
+      if (std::fabs(*it - i.time_s) >= 1e-3) {
+        prev_t = -1.0;
+        continue;
+      }
+      ++matched;
+      if (prev_t >= 0.0) err.push_back(std::fabs((i.time_s - prev_t) - (*it - prev_truth)));
+      prev_t = i.time_s;
+      prev_truth = *it;
+    }
+    EXPECT_GE(matched, static_cast<int>(0.95 * static_cast<double>(q.impacts.size()))) << rate;
+    std::sort(err.begin(), err.end());
+    ASSERT_FALSE(err.empty());
+    EXPECT_LT(err[err.size() / 2], 5e-6) << rate;
+    // Amplitudes are the peaks of the full-rate samples over 3 ms from the onset (the low-pass
+    // lowers them: compared with a channel's full-rate peak, clipped impacts went unflagged).
+    const std::vector<float>& x = a.channels[0];
+    const Impact& first = q.impacts.front();
+    const long i0 = static_cast<long>(std::floor(first.time_s * rate));
+    double peak = 0.0;
+    for (long i = i0; i < i0 + static_cast<long>(0.003 * rate) + 1; ++i)
+      peak = std::max(peak, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
+    EXPECT_EQ(first.amplitude, peak) << rate;
+  }
+}
+
 }  // namespace
 }  // namespace bouncecal

@@ -356,6 +356,73 @@ void MarkClipped(double clip_peak, SignalDetection* d) {
     for (Impact& imp : q.impacts) mark(imp);
 }
 
+// Detection runs at most at kMaxAnalysisRateHz: a recording at a higher rate (88.2 to 384 kHz)
+// is low-passed and decimated by an integer factor first. The impact sound a microphone records
+// lies below ~20 kHz; above it there is only noise, which the whitening (it flattens the whole
+// band) then weighs like the clicks. Measured on a rendered steel drop before: recall 0.70 at
+// 44.1 kHz, 0.59 at 96 kHz, 0.24 at 192 kHz, and no sequence at 384 kHz.
+constexpr double kMaxAnalysisRateHz = 64000.0;
+
+int DecimationFactor(double rate_hz) {
+  return std::max(1, static_cast<int>(std::ceil(rate_hz / kMaxAnalysisRateHz)));
+}
+
+// y[k] = sum_j h[j] x[k f + j], |j| <= 12 f: a Blackman-windowed sinc low-pass with its cutoff at
+// 0.45 of the new rate, centred (zero phase: no delay to correct), x taken as 0 beyond its ends.
+void Decimate(const std::vector<float>& x, int factor, std::vector<float>* y) {
+  const long f = factor, half = 12 * f, n = static_cast<long>(x.size());
+  const double fc = 0.45 / static_cast<double>(f);  // cycles per input sample
+  std::vector<float> h(static_cast<std::size_t>(2 * half + 1));
+  double sum = 0.0;
+  for (long j = -half; j <= half; ++j) {
+    const double t = static_cast<double>(j);
+    const double sinc = j == 0 ? 2.0 * fc : std::sin(2.0 * M_PI * fc * t) / (M_PI * t);
+    const double u = static_cast<double>(j + half) / static_cast<double>(2 * half);
+    const double w = 0.42 - 0.5 * std::cos(2.0 * M_PI * u) + 0.08 * std::cos(4.0 * M_PI * u);
+    h[static_cast<std::size_t>(j + half)] = static_cast<float>(sinc * w);
+    sum += sinc * w;
+  }
+  for (float& v : h) v = static_cast<float>(v / sum);  // unit gain at 0 Hz
+  const long m = (n + f - 1) / f;
+  y->assign(static_cast<std::size_t>(m), 0.0f);
+  for (long k = 0; k < m; ++k) {
+    const long c = k * f;
+    const long j0 = std::max(-half, -c), j1 = std::min(half, n - 1 - c);
+    const float* xp = x.data() + c;
+    const float* hp = h.data() + half;
+    float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f, a3 = 0.0f;
+    long j = j0;
+    for (; j + 3 <= j1; j += 4) {
+      a0 += hp[j] * xp[j];
+      a1 += hp[j + 1] * xp[j + 1];
+      a2 += hp[j + 2] * xp[j + 2];
+      a3 += hp[j + 3] * xp[j + 3];
+    }
+    for (; j <= j1; ++j) a0 += hp[j] * xp[j];
+    (*y)[static_cast<std::size_t>(k)] = (a0 + a1) + (a2 + a3);
+  }
+}
+
+// After detection at a decimated rate: each impact's amplitude is the peak |x| of the signal at
+// the file's rate over the same 3 ms (the low-pass lowers peaks, and `clipped` compares
+// amplitudes with the channel's full-rate peak).
+void FullRateAmplitudes(const std::vector<float>& x, double rate_hz, SignalDetection* d) {
+  const long n = static_cast<long>(x.size());
+  const long len = static_cast<long>(0.003 * rate_hz) + 1;
+  auto peak = [&](Impact& imp) {
+    const long i0 = std::clamp(static_cast<long>(std::floor(imp.time_s * rate_hz)), 0L, n);
+    double a = 0.0;
+    for (long i = i0; i < std::min(n, i0 + len); ++i)
+      a = std::max(a, static_cast<double>(std::fabs(x[static_cast<std::size_t>(i)])));
+    imp.amplitude = a;
+  };
+  for (Impact& imp : d->candidates) peak(imp);
+  for (Sequence& q : d->sequences) {
+    for (Impact& imp : q.impacts) peak(imp);
+    for (RemovedImpact& r : q.removed) peak(r.impact);
+  }
+}
+
 void ShiftTimes(double dt, SignalDetection* d) {
   for (Impact& i : d->candidates) i.time_s += dt;
   for (Sequence& q : d->sequences) {
@@ -505,7 +572,8 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   const std::int64_t search = std::min(cap / 4, static_cast<std::int64_t>(kMaxCutSearchS * rate));
   reader->Skip(i0);
   std::vector<std::vector<float>> buf(static_cast<std::size_t>(reader->info().channels));
-  std::vector<float> x;
+  std::vector<float> x, tail, xd;
+  const int factor = DecimationFactor(rate);
   std::int64_t buf_start = i0;
   double own_lo_s = -std::numeric_limits<double>::infinity();
   for (;;) {
@@ -526,18 +594,41 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     }
     const double own_hi_s =
         last ? std::numeric_limits<double>::infinity() : static_cast<double>(cut) / rate;
+    const std::size_t len = static_cast<std::size_t>(block_end - buf_start);
     for (std::size_t ci = 0; ci < choices.size(); ++ci) {
-      SignalOf(buf, choices[ci], 0, static_cast<std::size_t>(block_end - buf_start), &x);
+      // One channel, the only signal tried: detect on the block's own samples (its frames after
+      // block_end set aside meanwhile) instead of a copy, 4 bytes per frame less at the peak.
+      const bool in_place = choices.size() == 1 && choices[ci] >= 0;
+      if (in_place) {
+        x.swap(buf[static_cast<std::size_t>(choices[ci])]);
+        tail.assign(x.begin() + static_cast<std::ptrdiff_t>(len), x.end());
+        x.resize(len);
+      } else {
+        SignalOf(buf, choices[ci], 0, len, &x);
+      }
       double peak = 0.0;
       for (float v : x) peak = std::max(peak, static_cast<double>(std::fabs(v)));
       SignalAcrossBlocks& sig = (*signals)[ci];
       sig.peak = std::max(sig.peak, peak);
-      if (peak <= kSilencePeak) continue;
-      sig.sound = true;
-      const double offset_s = static_cast<double>(buf_start) / rate;
-      SignalDetection d = DetectInSignal(x, rate, offset_s, options);
-      ShiftTimes(offset_s, &d);
-      MergeBlock(std::move(d), own_lo_s, own_hi_s, last, &sig);
+      if (peak > kSilencePeak) {
+        sig.sound = true;
+        const double offset_s = static_cast<double>(buf_start) / rate;
+        SignalDetection d;
+        if (factor > 1) {
+          Decimate(x, factor, &xd);
+          d = DetectInSignal(xd, rate / factor, offset_s, options);
+          FullRateAmplitudes(x, rate, &d);
+          d.hop_samples *= factor;  // in samples of the file's rate (CoarsenToHop)
+        } else {
+          d = DetectInSignal(x, rate, offset_s, options);
+        }
+        ShiftTimes(offset_s, &d);
+        MergeBlock(std::move(d), own_lo_s, own_hi_s, last, &sig);
+      }
+      if (in_place) {
+        x.insert(x.end(), tail.begin(), tail.end());
+        x.swap(buf[static_cast<std::size_t>(choices[ci])]);
+      }
     }
     if (last) break;
     // The next block starts kBlockMarginS before the cut.

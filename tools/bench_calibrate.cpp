@@ -14,13 +14,19 @@
 //     exact flights: sigma_s recovered, pull RMS of the damping parameter and of the e(v) band
 //     (target [0.7, 1.4]), chi2/dof of the full model (~1), per strategy.
 //
-// Usage: bench_calibrate [--quick] [--scatter-only]
+//  5. whole `bouncecal calibrate` processes on the bundled recording (data/default_steel_copper,
+//     read + detect + fit), every law and `--law all`, against the bare start-up and against
+//     walton-braun (targets: every law <= 5x walton-braun, --law all <= 6x); with
+//     BOUNCECAL_BASELINE=/path/to/an/older/bouncecal also that binary's, in the same rounds.
+//
+// Usage: bench_calibrate [--quick] [--scatter-only] [--processes]
 #include <time.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <string>
@@ -35,6 +41,7 @@
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "bouncecal/synth/synth.hpp"
+#include "process_time.hpp"
 
 using namespace bouncecal;
 
@@ -358,18 +365,76 @@ void ScatterTable(int seeds) {
   }
 }
 
+// Whole `bouncecal calibrate` processes on the bundled recording (tools/process_time.hpp): the
+// commands (and the baseline's) take turns in each round, so one run's ratios are comparable.
+void ProcessTable(int runs) {
+  using bench::Command;
+  const std::string binary = bench::ProgramNextToThis();
+  const std::string data = std::string(BOUNCECAL_SOURCE_DIR) + "/data/default_steel_copper";
+  const char* baseline = std::getenv("BOUNCECAL_BASELINE");
+  std::printf(
+      "\n## Whole processes: `calibrate` on the bundled recording\n\nMedian of %d runs of `%s "
+      "calibrate %s.flac --scene %s.toml --quiet --law LAW > /dev/null` (read + detect + fit), "
+      "the commands taking turns; CPU = the child's user + system time. Targets: every law <= "
+      "5x walton-braun, --law all <= 6x (it runs the laws on the machine's cores: wall).%s\n\n",
+      runs, binary.c_str(), data.c_str(), data.c_str(),
+      baseline ? " Baseline: the same commands with BOUNCECAL_BASELINE." : "");
+  std::printf(
+      "| command | wall (ms) | CPU (ms) | CPU / --version | wall / walton-braun | CPU / "
+      "walton-braun |%s\n",
+      baseline ? " baseline wall (ms) | baseline CPU (ms) | baseline CPU / its --version |" : "");
+  std::printf("|---|---|---|---|---|---|%s\n", baseline ? "---|---|---|" : "");
+  std::vector<Command> commands = {{binary, "--version"}};
+  std::vector<std::string> laws;
+  for (const LawInfo& info : RegisteredLaws()) {
+    if (!info.needs_expression) laws.push_back(info.name);
+  }
+  laws.push_back("all");
+  for (const std::string& law : laws) {
+    commands.push_back(
+        {binary, "calibrate", data + ".flac", "--scene", data + ".toml", "--quiet", "--law", law});
+  }
+  size_t walton_braun = 0;
+  for (size_t i = 0; i < commands.size(); ++i) {
+    if (commands[i].back() == "walton-braun") walton_braun = i;
+  }
+  const size_t n = commands.size();
+  if (baseline) {
+    for (size_t i = 0; i < n; ++i) {
+      Command c = commands[i];
+      c[0] = baseline;
+      commands.push_back(c);
+    }
+  }
+  const std::vector<bench::ProcessTime> t = bench::MedianProcesses(commands, runs);
+  for (size_t i = 0; i < n; ++i) {
+    const std::string line = i == 0 ? "--version" : "calibrate --law " + commands[i].back();
+    std::printf("| `%s`%s | %.1f | %.1f | %.1f | %.2f | %.2f |", line.c_str(),
+                bench::ExitNote(t[i]).c_str(), 1e3 * t[i].wall_s, 1e3 * t[i].cpu_s,
+                t[i].cpu_s / t[0].cpu_s, t[i].wall_s / t[walton_braun].wall_s,
+                t[i].cpu_s / t[walton_braun].cpu_s);
+    if (baseline) {
+      const bench::ProcessTime& b = t[n + i];
+      std::printf(" %.1f | %.1f | %.1f |", 1e3 * b.wall_s, 1e3 * b.cpu_s, b.cpu_s / t[n].cpu_s);
+    }
+    std::printf("\n");
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, scatter_only = false;
+  bool quick = false, scatter_only = false, processes_only = false;
   for (int i = 1; i < argc; ++i) {
     quick |= std::string(argv[i]) == "--quick";
     scatter_only |= std::string(argv[i]) == "--scatter-only";
+    processes_only |= std::string(argv[i]) == "--processes";
   }
   try {
     std::printf("# bench_calibrate%s\n", quick ? " (--quick)" : "");
-    if (scatter_only) {
-      ScatterTable(quick ? 4 : 20);
+    if (scatter_only || processes_only) {
+      if (scatter_only) ScatterTable(quick ? 4 : 20);
+      if (processes_only) ProcessTable(quick ? 3 : 7);
       return 0;
     }
     SeedPaper();
@@ -378,6 +443,7 @@ int main(int argc, char** argv) {
     CostTable("hertz-viscoelastic", 0.9, seeds, 20, 5e-6);
     EndToEnd("hertz-viscoelastic", 0.92, true);
     ScatterTable(quick ? 4 : 20);
+    ProcessTable(quick ? 3 : 7);
   } catch (const Error& e) {
     std::fprintf(stderr, "bench_calibrate: %s\n", e.what());
     return e.exit_code();

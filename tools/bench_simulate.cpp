@@ -4,6 +4,7 @@
 //   build/bench_simulate              (prints markdown tables on stdout; ~2 minutes)
 //   BOUNCECAL_BASELINE=/path/to/an/older/bouncecal build/bench_simulate
 //                                     (adds that binary's whole-process times, for before/after)
+//   build/bench_simulate --processes  (section 5 alone)
 //
 // 1. Per registered law, a 30-impact sequence of the seed's 1 cm steel ball dropped from 0.2 m
 //    (contacts integrated, gravity in the contact) across rtol 1e-3 .. 1e-12: max error in e
@@ -20,10 +21,7 @@
 //    default accuracy.
 // 5. Whole processes: `bouncecal --version` and `laws` (the bare start-up) against `simulate` of
 //    every law (median wall and CPU time of the child over repeated runs).
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <time.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -34,12 +32,12 @@
 #include <string>
 #include <vector>
 
-#include <filesystem>
 #include <map>
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
+#include "process_time.hpp"
 
 using namespace bouncecal;
 
@@ -458,82 +456,44 @@ void SpeedTarget() {
 }
 
 // ---------------------------------------------------------------------------------------
-// Whole processes: what a user waits for, start-up included.
-struct ProcessTime {
-  double wall_s = 0.0, cpu_s = 0.0;
-  bool ok = false;
-};
-
-ProcessTime RunProcess(const std::string& binary, const std::vector<std::string>& args) {
-  std::vector<char*> argv;
-  argv.push_back(const_cast<char*>(binary.c_str()));
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const auto t0 = Clock::now();
-  const pid_t pid = fork();
-  if (pid == 0) {
-    FILE* null = std::fopen("/dev/null", "w");
-    if (null) {
-      dup2(fileno(null), 1);
-      dup2(fileno(null), 2);
-    }
-    execv(binary.c_str(), argv.data());
-    _exit(127);
-  }
-  ProcessTime t;
-  int status = 0;
-  rusage ru{};
-  if (pid < 0 || wait4(pid, &status, 0, &ru) != pid) return t;
-  t.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  t.cpu_s = static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
-            1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-  t.ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-  return t;
-}
-
-// Median wall and CPU time over `runs` processes.
-ProcessTime MedianProcess(const std::string& binary, const std::vector<std::string>& args,
-                          int runs) {
-  std::vector<double> wall, cpu;
-  bool ok = true;
-  for (int i = 0; i < runs; ++i) {
-    const ProcessTime t = RunProcess(binary, args);
-    ok = ok && t.ok;
-    wall.push_back(t.wall_s);
-    cpu.push_back(t.cpu_s);
-  }
-  std::sort(wall.begin(), wall.end());
-  std::sort(cpu.begin(), cpu.end());
-  return {wall[wall.size() / 2], cpu[cpu.size() / 2], ok};
-}
-
+// Whole processes: what a user waits for, start-up included (tools/process_time.hpp). The
+// commands (and the baseline's) take turns in each round, so one run's ratios are comparable.
 void ProcessTable() {
-  const std::string binary =
-      (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "bouncecal").string();
+  using bench::Command;
+  const std::string binary = bench::ProgramNextToThis();
   const char* baseline = std::getenv("BOUNCECAL_BASELINE");
+  constexpr int kRuns = 11;
   std::printf(
       "\n## Whole processes: bare start-up against `simulate` (default scene: 1 cm steel ball "
-      "from 0.2 m, until rest)\n\nMedian of 11 runs of `%s ARGS > /dev/null`; CPU = the "
-      "child's user + system time. Target: `simulate` of any law <= 5x the bare start-up.%s\n\n",
-      binary.c_str(), baseline ? " Baseline: the same commands with BOUNCECAL_BASELINE." : "");
-  std::printf("| command | wall (ms) | CPU (ms) | wall / --version | CPU / --version |%s\n",
-              baseline ? " baseline wall (ms) | baseline CPU (ms) |" : "");
-  std::printf("|---|---|---|---|---|%s\n", baseline ? "---|---|" : "");
-  std::vector<std::vector<std::string>> commands = {{"--version"}, {"laws"}};
+      "from 0.2 m, until rest)\n\nMedian of %d runs of `%s ARGS > /dev/null`, the commands "
+      "taking turns; CPU = the child's user + system time. Target: `simulate` of any law <= 5x "
+      "the bare start-up.%s\n\n",
+      kRuns, binary.c_str(),
+      baseline ? " Baseline: the same commands with BOUNCECAL_BASELINE." : "");
+  std::printf(
+      "| command | wall (ms) | CPU (ms) | wall / --version | CPU / --version |%s\n",
+      baseline ? " baseline wall (ms) | baseline CPU (ms) | baseline CPU / its --version |" : "");
+  std::printf("|---|---|---|---|---|%s\n", baseline ? "---|---|---|" : "");
+  std::vector<Command> commands = {{binary, "--version"}, {binary, "laws"}};
   for (const LawInfo& info : RegisteredLaws()) {
-    if (!info.needs_expression) commands.push_back({"simulate", "--law", info.name});
+    if (!info.needs_expression) commands.push_back({binary, "simulate", "--law", info.name});
   }
-  constexpr int kRuns = 11;
-  const ProcessTime bare = MedianProcess(binary, {"--version"}, kRuns);
-  for (const auto& args : commands) {
-    const ProcessTime t = MedianProcess(binary, args, kRuns);
-    std::string line;
-    for (const std::string& a : args) line += (line.empty() ? "" : " ") + a;
-    std::printf("| `%s`%s | %.1f | %.1f | %.1f | %.1f |", line.c_str(), t.ok ? "" : " (failed)",
-                1e3 * t.wall_s, 1e3 * t.cpu_s, t.wall_s / bare.wall_s, t.cpu_s / bare.cpu_s);
+  const size_t n = commands.size();
+  if (baseline) {
+    for (size_t i = 0; i < n; ++i) {
+      Command c = commands[i];
+      c[0] = baseline;
+      commands.push_back(c);
+    }
+  }
+  const std::vector<bench::ProcessTime> t = bench::MedianProcesses(commands, kRuns);
+  for (size_t i = 0; i < n; ++i) {
+    std::printf("| `%s`%s | %.1f | %.1f | %.1f | %.1f |", bench::ArgumentLine(commands[i]).c_str(),
+                bench::ExitNote(t[i]).c_str(), 1e3 * t[i].wall_s, 1e3 * t[i].cpu_s,
+                t[i].wall_s / t[0].wall_s, t[i].cpu_s / t[0].cpu_s);
     if (baseline) {
-      const ProcessTime b = MedianProcess(baseline, args, kRuns);
-      std::printf(" %.1f | %.1f |", 1e3 * b.wall_s, 1e3 * b.cpu_s);
+      const bench::ProcessTime& b = t[n + i];
+      std::printf(" %.1f | %.1f | %.1f |", 1e3 * b.wall_s, 1e3 * b.cpu_s, b.cpu_s / t[n].cpu_s);
     }
     std::printf("\n");
   }
@@ -548,7 +508,11 @@ bool Registered(const std::string& name) {
 
 }  // namespace
 
-int main() {
+int main(int argc, char** argv) {
+  if (argc > 1 && std::string(argv[1]) == "--processes") {
+    ProcessTable();  // section 5 alone
+    return 0;
+  }
   const auto t0 = Clock::now();
   std::printf("# bench_simulate\n\n## What accuracy costs in time\n\n");
   std::printf(

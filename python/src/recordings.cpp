@@ -105,18 +105,17 @@ py::object DetectBinding(const std::vector<std::string>& files, const py::dict& 
       inputs, /*unwrap_single=*/true,
       [&](const std::string& rec, const std::string& imp, const std::string& name,
           nlohmann::json* out) {
-        std::optional<Audio> audio;
-        if (!rec.empty()) audio = ReadAudio(rec);
+        // The recording is read block by block (memory independent of its length), as the CLI.
         LoadedRecording l;
         if (imp.empty()) {
           DetectOptions d = flags.detect;
           d.hop_s = hop_ms * 1e-3;
           d.refine = !no_refine;
           l.name = name;
-          l.result = DetectImpacts(*audio, d);
+          l.result = DetectImpactsInFile(rec, d);
           l.chosen = ChooseSequences(l.result.sequences, flags.sequence, name);
         } else {
-          l = LoadRecording(rec, audio ? &*audio : nullptr, imp, flags);
+          l = LoadRecording(rec, nullptr, imp, flags);
         }
         out->push_back(DetectionJson(
             name, l.result, {.chosen = l.chosen, .from_impacts_file = !l.impacts_file.empty()}));

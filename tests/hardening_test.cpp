@@ -267,6 +267,37 @@ TEST(EmptyOutputPath, RefusedByEveryCommandWithExit11) {
   }
 }
 
+// Outputs never replace an input, --force or not: the scene file and the --impacts files are
+// inputs as much as the recordings (tools/bad_inputs.py found `calibrate -o scene.toml --force`
+// and `report -o scene.toml --force` overwriting the scene, exit 0, and `-o impacts.txt` the
+// impacts file).
+TEST(OutputIsAnInput, SceneAndImpactsFilesAreNeverReplaced) {
+  ScratchDir dir("bc_harden");
+  const std::string scene = dir / "scene.toml", impacts = dir / "impacts.txt";
+  fs::copy_file(kScene, scene);
+  std::ofstream(impacts) << "0.5\n0.87\n1.2\n";
+  const std::string rec = kRecording + " --scene " + scene;
+  const std::pair<std::string, std::string> cases[] = {
+      {"calibrate " + rec + " -o " + scene, scene},
+      {"calibrate " + rec + " --batch -o " + scene, scene},
+      {"calibrate " + rec + " --report " + scene, scene},
+      {"calibrate " + rec + " --impacts " + impacts + " -o " + impacts, impacts},
+      {"report " + rec + " -o " + scene, scene},
+      {"report " + rec + " --plot " + dir / "scene.svg -o " + scene, scene}};
+  const std::string scene_text = Slurp(scene), impacts_text = Slurp(impacts);
+  for (const auto& [args, target] : cases) {
+    const CommandResult r = Cli(args + " --force");
+    EXPECT_EQ(r.exit_code, 11) << args << "\n" << r.err;  // kOutput
+    EXPECT_NE(r.err.find(target + ": is an input file; refusing to overwrite it"),
+              std::string::npos)
+        << args << "\n"
+        << r.err;
+    EXPECT_EQ(Slurp(scene), scene_text) << args;
+    EXPECT_EQ(Slurp(impacts), impacts_text) << args;
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), {}), 2);  // nothing left behind
+}
+
 // WriteAudio (synth output, detect --click-track) now writes through core/atomic_file: a
 // replaced file keeps its mode (its own temp-file code created 0644 files) and no temporary
 // file is left beside it.

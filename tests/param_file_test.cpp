@@ -241,7 +241,12 @@ TEST(ParamFile, MalformedFilesAreRejectedWithTheKey) {
       EXPECT_NE(std::string(e.what()).find("p.json"), std::string::npos) << e.what();
     }
   };
-  expect_bad("not json", "not a JSON object");
+  // A syntax error names where parsing stopped (was "not a JSON object" for any of these).
+  expect_bad("not json", "syntax error at line 1, column 2");
+  expect_bad("{\n  \"schema\": \"bouncecal.params/2\",\n  \"law\": {\"name\": ",
+             "syntax error at line 3, column 19 (the text ends early)");
+  expect_bad("{\"a\": 1,\n\"b\" 2}", "syntax error at line 2, column 5");
+  expect_bad("", "empty file (0 bytes)");
   expect_bad("[1,2]", "not a JSON object");
   expect_bad(R"({"law": "walton-braun"})", "schema");
   expect_bad(R"({"schema": "bouncecal.params/3", "law": {"name": "x", "parameters": {}}})",
@@ -260,11 +265,20 @@ TEST(ParamFile, MalformedFilesAreRejectedWithTheKey) {
       R"({"schema": "bouncecal.params/1", "law": "walton-braun",
           "parameters": {"gamma": {"value": "0.4"}}})",
       "parameters.gamma.value");
-  try {
-    ReadParamFile(dir / "absent.json");
-    ADD_FAILURE();
-  } catch (const Error& e) {
-    EXPECT_EQ(e.code(), ErrorCode::kInputMissing);
+  // A missing file and a directory are kInputMissing, as for recordings and scenes (a
+  // directory was "not a JSON object", exit 9: std::ifstream opens a directory on Linux).
+  fs::create_directory(dir / "adir");
+  for (const auto& [name, needle] :
+       {std::pair<std::string, std::string>{"absent.json", "parameter file does not exist"},
+        {"adir", "is a directory"}}) {
+    try {
+      ReadParamFile(dir / name);
+      ADD_FAILURE() << name;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInputMissing) << e.what();
+      EXPECT_NE(std::string(e.what()).find(dir / name + ": " + needle), std::string::npos)
+          << e.what();
+    }
   }
 }
 

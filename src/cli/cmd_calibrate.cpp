@@ -63,6 +63,11 @@ struct CalibrateArgs {
   bool quiet = false;  // no progress line
 };
 
+// The files no output may replace: recordings, --impacts files, the scene file.
+std::vector<std::string> Inputs(const CalibrateArgs& a) {
+  return InputFiles(a.files, a.detect, a.scene.scene_file);
+}
+
 // A number as printed in text (assumed values): `prec` significant digits, "" if unknown.
 std::string Num(double v, int prec) {
   if (!std::isfinite(v)) return "";
@@ -232,7 +237,7 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
   for (auto& t : pool) t.join();
   if (progress) std::cerr << "\r\033[K" << std::flush;
   if (!a.output.empty()) {
-    WriteFileAtomically(a.output, summary, {.force = a.force, .inputs = a.files});
+    WriteFileAtomically(a.output, summary, {.force = a.force, .inputs = Inputs(a)});
   }
   size_t failed = 0;
   for (size_t i = 0; i < n; ++i) {
@@ -355,7 +360,7 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
   }
   if (!a.output.empty()) {
     WriteParamFile(a.output, CalibrationJson(rows.front().fit, prov, options_json),
-                   {.force = a.force, .inputs = a.files});
+                   {.force = a.force, .inputs = Inputs(a)});
   }
 }
 
@@ -376,7 +381,7 @@ void Run(const CalibrateArgs& a) {
   MakeDetectOptions(a.detect);            // flag errors before any work
   const auto pairs = PairInputs(a.files, a.detect);
   // The output path must be usable before the expensive work.
-  if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = a.files});
+  if (!a.output.empty()) CheckOutputPath(a.output, {.force = a.force, .inputs = Inputs(a)});
   const std::vector<Warning> unit_warnings = SceneUnitWarnings(scene, opts.use_drop);
   if (a.report.any() && a.batch) {
     throw Error(ErrorCode::kUsage,
@@ -385,7 +390,7 @@ void Run(const CalibrateArgs& a) {
   }
   ReportPaths report = a.report;
   report.force = a.force;
-  CheckReportPaths(report, a.files);
+  CheckReportPaths(report, Inputs(a));
   Progress progress(a.quiet);
   auto write_report = [&](const Calibration* fit, const std::vector<LawComparisonRow>* rows) {
     WriteReports(report, a.files, MakeDetectOptions(a.detect), scene, ReportAnalysisOptions(gs),
@@ -429,7 +434,7 @@ void Run(const CalibrateArgs& a) {
   std::cout << std::flush;
   // The parameter file records every outcome (nothing is lost); the exit code tells scripts.
   if (!a.output.empty()) {
-    WriteParamFile(a.output, doc, {.force = a.force, .inputs = a.files});
+    WriteParamFile(a.output, doc, {.force = a.force, .inputs = Inputs(a)});
     if (!a.json && !a.csv) std::cout << "wrote " << a.output << "\n" << std::flush;
   }
   ExitWithOutcome(c);

@@ -121,7 +121,7 @@ void Run(const ReportArgs& a) {
   if (!opts.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
   const DetectOptions detect = MakeDetectOptions(a.detect);
-  CheckReportPaths(a.paths, a.files);
+  CheckReportPaths(a.paths, InputFiles(a.files, a.detect, a.scene.scene_file));
 
   Progress progress(a.quiet);
   std::vector<ReportRecording> recordings =

@@ -92,4 +92,12 @@ std::vector<Drop> LoadDrops(const std::vector<std::string>& recordings, const De
   return WithFlagText([&] { return bouncecal::LoadDrops(recordings, o); });
 }
 
+std::vector<std::string> InputFiles(const std::vector<std::string>& recordings,
+                                    const DetectFlags& flags, const std::string& scene_file) {
+  std::vector<std::string> files = recordings;
+  files.insert(files.end(), flags.impacts.begin(), flags.impacts.end());
+  if (!scene_file.empty()) files.push_back(scene_file);
+  return files;
+}
+
 }  // namespace bouncecal::cli

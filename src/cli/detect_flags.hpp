@@ -52,4 +52,9 @@ std::vector<Drop> LoadDrops(const std::vector<std::string>& recordings, const De
 std::vector<Drop> DropsOf(const std::string& recording, const std::string& impacts_file,
                           const DetectFlags& flags);
 
+// Every file a command reads: the recordings, the --impacts files and the scene file ("" =
+// none). No output may replace one of them (WriteOptions::inputs), --force or not.
+std::vector<std::string> InputFiles(const std::vector<std::string>& recordings,
+                                    const DetectFlags& flags, const std::string& scene_file);
+
 }  // namespace bouncecal::cli

@@ -1,6 +1,8 @@
 #include "bouncecal/io/param_file.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -15,14 +17,55 @@ void WriteParamFile(const std::string& path, const json& doc, const WriteOptions
   WriteFileAtomically(path, DumpJson(doc, 2) + "\n", options);
 }
 
-ParamFile ReadParamFile(const std::string& path) {
+namespace {
+
+// The file's text. A missing file or a directory is kInputMissing, as for recordings and scenes
+// (std::ifstream opens a directory on Linux and reads nothing).
+std::string ReadParamText(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    throw Error(ErrorCode::kInputMissing, path + ": parameter file does not exist");
+  }
+  if (std::filesystem::is_directory(status)) {
+    throw Error(ErrorCode::kInputMissing, path + ": is a directory, expected a parameter file");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(ErrorCode::kInputMissing, path + ": cannot open parameter file");
   std::stringstream ss;
   ss << in.rdbuf();
+  if (in.bad()) throw Error(ErrorCode::kInputMissing, path + ": cannot read parameter file");
+  return ss.str();
+}
+
+// The JSON document; a syntax error names the line and column where parsing stopped.
+json ParseParamJson(const std::string& path, const std::string& text) {
+  if (text.empty()) {
+    throw Error(ErrorCode::kBadParameter, path +
+                                              ": empty file (0 bytes), expected a JSON "
+                                              "parameter file (calibrate -o)");
+  }
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error& e) {
+    // e.byte: 1-based index of the character the parser stopped at.
+    const size_t at = std::min<size_t>(e.byte == 0 ? 0 : e.byte - 1, text.size());
+    const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() + at, '\n'));
+    const size_t newline = at == 0 ? std::string::npos : text.rfind('\n', at - 1);
+    const size_t column = at - (newline == std::string::npos ? 0 : newline + 1) + 1;
+    throw Error(ErrorCode::kBadParameter,
+                path + ": not a JSON parameter file: syntax error at line " + std::to_string(line) +
+                    ", column " + std::to_string(column) +
+                    (at >= text.size() ? " (the text ends early)" : ""));
+  }
+}
+
+}  // namespace
+
+ParamFile ReadParamFile(const std::string& path) {
   auto bad = [&](const std::string& m) { return Error(ErrorCode::kBadParameter, path + ": " + m); };
-  json doc = json::parse(ss.str(), nullptr, false);
-  if (doc.is_discarded() || !doc.is_object()) throw bad("not a JSON object");
+  json doc = ParseParamJson(path, ReadParamText(path));
+  if (!doc.is_object()) throw bad("not a JSON object");
   ParamFile pf;
   if (!doc.contains("schema") || !doc["schema"].is_string()) throw bad("missing key 'schema'");
   pf.schema = doc["schema"].get<std::string>();

@@ -40,8 +40,9 @@ struct ParamFile {
   nlohmann::json doc;                 // the whole object
 };
 // Reads and checks a parameter file: schema version, law, parameter values.
-// Missing file: Error(kInputMissing); not JSON, wrong schema, missing or mistyped keys:
-// Error(kBadParameter) naming the file and the key.
+// Missing file or a directory: Error(kInputMissing); not JSON (the line and column of the
+// syntax error), wrong schema, missing or mistyped keys: Error(kBadParameter) naming the file
+// and the key.
 ParamFile ReadParamFile(const std::string& path);
 
 }  // namespace bouncecal

@@ -4,23 +4,28 @@ through the real CLI, with its exit code and message.
 
     python3 tools/bad_inputs.py --bouncecal build/bouncecal              # table + checks
     python3 tools/bad_inputs.py --bouncecal build/bouncecal --markdown   # the README table only
+    python3 tools/bad_inputs.py --bouncecal build/bouncecal --readme README.md [--update]
+                                    # also check (rewrite) README's copy of the table
 
 Builds every input in a temporary directory (audio with `bouncecal synth` or Python's
 `wave`/`struct`; the bundled data/default_steel_copper.flac and .toml, copied, as the good
 recording and scene), runs each command in a fresh copy of that directory with relative file
-names as a user would, and prints one Markdown row per case: the input, the command, the exit code and the first line of
-stderr. Each case is checked, and the script exits 1 if any check fails:
-  - the exit code is the one README.md "### Exit codes" documents for that input (EXPECTED
-    column of CASES below);
+names as a user would, and prints one Markdown row per case: the input, the command, the exit
+code and the first line of stderr. Each case is checked, and the script exits 1 if any check
+fails:
+  - the exit code is the one README.md "### Exit codes" documents for that input (the third
+    field of each CASES entry below);
   - no crash: no exit status >= 128 or death by a signal, no exit 1 (internal error), no
     sanitizer, abort, assertion or uncaught-exception text; the message starts "bouncecal:";
   - the message names the input where there is one (the file name, the flag or the scene key:
-    NAMES column);
+    the fourth field);
   - nothing was written or left behind and no input was modified: every file and directory of
     the working directory (inputs and would-be outputs alike) has the same name and SHA-256
     before and after the command, so a partial output file, a leftover temporary file or an
     overwritten input fails the case.
-Runs in ~10-20 s (the slowest cases fit the bundled recording).
+With --readme the README's copy of the table must equal what is printed (the ctest passes it,
+so a changed message or code shows up as drift). Runs in ~6-10 s (the slowest cases fit the
+bundled recording).
 """
 import argparse
 import hashlib
@@ -299,30 +304,69 @@ def cell(text, limit=160):
     return text.replace("|", "\\|").replace("<", "&lt;")
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--bouncecal", required=True, help="the bouncecal program to test")
-    ap.add_argument("--markdown", action="store_true",
-                    help="print only the Markdown table (for README.md)")
-    args = ap.parse_args()
-    bouncecal = os.path.abspath(args.bouncecal)
-    failed = 0
+HEADER = ["| # | input | command | exit | message (first line of stderr) |",
+          "|---|---|---|---|---|"]
+
+
+def run_all(bouncecal):
+    """Runs every case, printing its row as it ends; returns (table lines, failed cases)."""
+    lines, failed = list(HEADER), 0
+    print("\n".join(HEADER), flush=True)
     with tempfile.TemporaryDirectory(prefix="bad_inputs.") as tmp:
         inputs = os.path.join(tmp, "inputs")
         os.mkdir(inputs)
         make_audio(bouncecal, inputs)
         make_text_inputs(bouncecal, inputs)
-        print("| # | input | command | exit | message (first line of stderr) |")
-        print("|---|---|---|---|---|")
         for n, case in enumerate(CASES, 1):
             row, problems = run_case(bouncecal, inputs, os.path.join(tmp, "case%d" % n), case)
-            print("| %d | %s |" % (n, " | ".join(row)), flush=True)
+            lines.append("| %d | %s |" % (n, " | ".join(row)))
+            print(lines[-1], flush=True)
             for p in problems:
                 print("bad_inputs: case %d (%s): %s" % (n, case[0], p), file=sys.stderr)
             failed += 1 if problems else 0
+    return lines, failed
+
+
+def readme_table(readme, lines, update):
+    """Compares (or with update, replaces) the README's copy of the table: the table lines from
+    HEADER on. Returns the number of lines that differ."""
+    with open(readme, encoding="utf-8") as f:
+        text = f.read().split("\n")
+    if HEADER[0] not in text:
+        print("bad_inputs: %s has no table starting %r" % (readme, HEADER[0]), file=sys.stderr)
+        return 1
+    start = text.index(HEADER[0])
+    end = start
+    while end < len(text) and text[end].startswith("|"):
+        end += 1
+    old = text[start:end]
+    drift = sum(1 for a, b in zip(old, lines) if a != b) + abs(len(old) - len(lines))
+    for a, b in zip(old, lines):
+        if a != b and not update:
+            print("bad_inputs: README row\n  %s\nis now\n  %s" % (a, b), file=sys.stderr)
+    if update and drift:
+        with open(readme, "w", encoding="utf-8") as f:
+            f.write("\n".join(text[:start] + lines + text[end:]))
+        return 0
+    return drift
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bouncecal", required=True, help="the bouncecal program to test")
+    ap.add_argument("--markdown", action="store_true",
+                    help="print only the Markdown table (for README.md)")
+    ap.add_argument("--readme", help="also check that this file holds the table as printed")
+    ap.add_argument("--update", action="store_true", help="with --readme: rewrite its table")
+    args = ap.parse_args()
+    lines, failed = run_all(os.path.abspath(args.bouncecal))
     if not args.markdown:
         print("\n%d cases, %d failed" % (len(CASES), failed))
-    return 1 if failed else 0
+    drift = readme_table(args.readme, lines, args.update) if args.readme else 0
+    if drift:
+        print("bad_inputs: %d lines of the README table differ (regenerate: --readme %s "
+              "--update)" % (drift, args.readme), file=sys.stderr)
+    return 1 if failed or drift else 0
 
 
 if __name__ == "__main__":

@@ -399,13 +399,7 @@ void ProcessTable(int runs) {
     if (commands[i].back() == "walton-braun") walton_braun = i;
   }
   const size_t n = commands.size();
-  if (baseline) {
-    for (size_t i = 0; i < n; ++i) {
-      Command c = commands[i];
-      c[0] = baseline;
-      commands.push_back(c);
-    }
-  }
+  bench::AddBaselineCopies(&commands, baseline);
   const std::vector<bench::ProcessTime> t = bench::MedianProcesses(commands, runs);
   for (size_t i = 0; i < n; ++i) {
     const std::string line = i == 0 ? "--version" : "calibrate --law " + commands[i].back();

@@ -479,13 +479,7 @@ void ProcessTable() {
     if (!info.needs_expression) commands.push_back({binary, "simulate", "--law", info.name});
   }
   const size_t n = commands.size();
-  if (baseline) {
-    for (size_t i = 0; i < n; ++i) {
-      Command c = commands[i];
-      c[0] = baseline;
-      commands.push_back(c);
-    }
-  }
+  bench::AddBaselineCopies(&commands, baseline);
   const std::vector<bench::ProcessTime> t = bench::MedianProcesses(commands, kRuns);
   for (size_t i = 0; i < n; ++i) {
     std::printf("| `%s`%s | %.1f | %.1f | %.1f | %.1f |", bench::ArgumentLine(commands[i]).c_str(),

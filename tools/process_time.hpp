@@ -89,4 +89,16 @@ inline std::string ArgumentLine(const Command& command) {
   return line;
 }
 
+// Appends a copy of each command run by `baseline` (an older binary, BOUNCECAL_BASELINE) instead
+// of the first word, so both are timed in the same loop; nothing without a baseline.
+inline void AddBaselineCopies(std::vector<Command>* commands, const char* baseline) {
+  if (!baseline) return;
+  const std::size_t n = commands->size();
+  for (std::size_t i = 0; i < n; ++i) {
+    Command c = (*commands)[i];
+    c[0] = baseline;
+    commands->push_back(c);
+  }
+}
+
 }  // namespace bouncecal::bench

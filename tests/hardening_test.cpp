@@ -411,4 +411,20 @@ TEST(OutputLimits, SimulateRefusesMoreImpactsThanTheLimit) {
   EXPECT_NE(s.err.find("1000000"), std::string::npos) << s.err;
 }
 
+// Found by tools/run-fuzz.sh (tests/fuzz/regressions/fuzz_audio/): an MPEG-1 Layer I stream whose
+// frames go from stereo to mono. The converter set up for the stream's first format read the
+// missing second channel of the mono frame: `detect` died of SIGSEGV (exit 139) in libswresample.
+// Now a change of format mid-stream is refused naming the file and both formats (exit 4).
+TEST(FuzzFindings, AudioStreamChangingChannelsMidStreamIsRefused) {
+  const std::string input = std::string(BOUNCECAL_SOURCE_DIR) +
+                            "/tests/fuzz/regressions/fuzz_audio/"
+                            "crash-9d9649e4b20d62069596a83c0c21e96593bd3954";
+  const CommandResult r = Cli("detect " + Quote(input));
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find(input + ": not an audio file"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("FFmpeg: the audio stream changes format after"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("2 channels at 32000 Hz, then 1 channels"), std::string::npos) << r.err;
+}
+
 }  // namespace

@@ -57,10 +57,27 @@ struct Sink {
   SwrContext* swr;
   std::vector<float*> planes;
   std::vector<std::vector<float>> buf;
+  // What `swr` was set up for (the decoder's format when opened). MPEG audio may switch channel
+  // count or sample format from one frame to the next (a fuzzed MPEG-1 Layer I file went stereo
+  // -> mono); converting such a frame with this context read a missing input plane (SEGV).
+  int in_format;
+  int in_rate_hz;
+  const std::string* path;
 };
 
 void Append(Sink* s, const AVFrame* frame) {
   const int nch = static_cast<int>(s->channels->size());
+  if (frame->format != s->in_format || frame->ch_layout.nb_channels != nch ||
+      frame->sample_rate != s->in_rate_hz) {
+    const char* fmt = av_get_sample_fmt_name(static_cast<AVSampleFormat>(frame->format));
+    throw Error(ErrorCode::kNotAudio,
+                *s->path + ": the audio stream changes format after " +
+                    std::to_string((*s->channels)[0].size()) + " frames (" + std::to_string(nch) +
+                    " channels at " + std::to_string(s->in_rate_hz) + " Hz, then " +
+                    std::to_string(frame->ch_layout.nb_channels) + " channels at " +
+                    std::to_string(frame->sample_rate) + " Hz, " +
+                    (fmt != nullptr ? fmt : "unknown") + " samples); not supported");
+  }
   const int cap = swr_get_out_samples(s->swr, frame->nb_samples);
   s->buf.assign(static_cast<std::size_t>(nch),
                 std::vector<float>(static_cast<std::size_t>(std::max(cap, 1))));
@@ -114,7 +131,7 @@ Audio Decode(const std::string& path) {
 
   Audio a;
   a.channels.assign(static_cast<std::size_t>(nch), {});
-  Sink sink{&a.channels, swr.get(), {}, {}};
+  Sink sink{&a.channels, swr.get(), {}, {}, dec->sample_fmt, rate, &path};
   std::unique_ptr<AVPacket, PacketFree> pkt(av_packet_alloc());
   std::unique_ptr<AVFrame, FrameFree> frame(av_frame_alloc());
   long long skipped = 0;

@@ -1,6 +1,7 @@
-// Audio files of any format libsndfile reads (FFmpeg is a module loaded on first use and is left
-// out here: libFuzzer runs in one process and FFmpeg's decoders are fuzzed upstream), then the
-// whole detector on what decodes.
+// Audio files of any format libsndfile reads, and what it cannot through our FFmpeg module
+// (libbouncecal_ffmpeg.so, loaded from the build directory on first use and instrumented like
+// the library: its first finding was ours, a stream changing format mid-way), then the whole
+// detector on what decodes.
 #include <cstddef>
 #include <cstdint>
 

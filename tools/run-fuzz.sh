@@ -5,15 +5,20 @@
 # timeout-*) stay in build-fuzz/findings/<target>/: each becomes a regression input under
 # tests/fuzz/regressions/<target>/ (replayed by `tools/run-fuzz.sh 0`, which runs every target
 # once over its corpus and regressions without fuzzing).
+# BOUNCECAL_FUZZ_BUILD names another build directory configured with -DBOUNCECAL_FUZZ=ON (the
+# sanitizer stage of CI reuses build-asan/, tools/run-sanitizers.sh); its settings are kept.
 #   tools/run-fuzz.sh [SECONDS] [TARGET...]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-60}
 shift || true
-build=$root/build-fuzz
-CXX=clang++ CC=clang cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DBOUNCECAL_FUZZ=ON -DBOUNCECAL_BUILD_TESTS=OFF -DBOUNCECAL_BUILD_TOOLS=OFF \
-  -DBOUNCECAL_PYTHON=OFF >/dev/null
+build=${BOUNCECAL_FUZZ_BUILD:-$root/build-fuzz}
+"$root/tools/install-sanitizer-deps.sh"
+if [ ! -f "$build/CMakeCache.txt" ]; then
+  CXX=clang++ CC=clang cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DBOUNCECAL_FUZZ=ON -DBOUNCECAL_BUILD_TESTS=OFF -DBOUNCECAL_BUILD_TOOLS=OFF \
+    -DBOUNCECAL_PYTHON=OFF >/dev/null
+fi
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene fuzz_impacts fuzz_params fuzz_expression fuzz_audio)
 cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"

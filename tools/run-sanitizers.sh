@@ -37,7 +37,7 @@ export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
 # exporters, the report, synth, the law catalogue's sweeps, the README's examples.
 CI_ASAN_TESTS=(
   scene_test param_file_test impacts_file_test given_scene_test
-  audio_test onsets_test sequence_test detect_test
+  audio_test blocks_test onsets_test sequence_test detect_test
   kinematics_test calibrate_test calibrate_cli_test hardening_test cli_test
 )
 TSAN_TESTS=(calibrate_cli_test calibrate_test hardening_test)

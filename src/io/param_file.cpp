@@ -57,6 +57,12 @@ json ParseParamJson(const std::string& path, const std::string& text) {
                 path + ": not a JSON parameter file: syntax error at line " + std::to_string(line) +
                     ", column " + std::to_string(column) +
                     (at >= text.size() ? " (the text ends early)" : ""));
+  } catch (const json::out_of_range& e) {
+    // A number beyond a double's range ("2e421") is valid JSON syntax that nlohmann rejects as
+    // out_of_range (found by the CI fuzz stage: it escaped the reader and aborted).
+    throw Error(ErrorCode::kBadParameter,
+                path + ": not a usable parameter file: a number is beyond a double's range (" +
+                    std::string(e.what()).substr(0, 120) + ")");
   }
 }
 

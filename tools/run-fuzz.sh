@@ -58,7 +58,11 @@ for t in "${targets[@]}"; do
   if [ "$seconds" = 0 ]; then
     "$build/$t" -runs=0 "${inputs[@]}"
   else
-    "$build/$t" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 \
+    # FUZZ_SEED fixes libFuzzer's random seed (CI: the same tree explores the same inputs, so a
+    # CI run does not fail by luck); unset, every run explores anew.
+    seed_flag=()
+    [ -n "${FUZZ_SEED:-}" ] && seed_flag=(-seed="$FUZZ_SEED")
+    "$build/$t" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 "${seed_flag[@]}" \
       -artifact_prefix="$findings/" "${inputs[@]}" 2>"$build/$t.log" || {
       echo "$t: FINDING (see $build/$t.log and $findings/)"; tail -30 "$build/$t.log"; exit 1; }
     echo "$t: $((SECONDS - start)) s, $(grep -o 'cov: [0-9]*' "$build/$t.log" | tail -1), \

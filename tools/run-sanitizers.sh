@@ -14,7 +14,8 @@
 #       that run threads (batch --jobs, law comparison); runs those tests.
 # all   asan, then tsan.
 # ci    what .ci/run runs: asan restricted to the test programs in CI_ASAN_TESTS below, the
-#       fuzz targets for FUZZ_SECONDS each (default 30) from their seeds and regressions, then
+#       fuzz targets for FUZZ_SECONDS each (default 30) from their seeds and regressions, with
+#       libFuzzer's seed fixed (FUZZ_SEED, default 1: a CI run does not fail by luck), then
 #       tsan. See .ci/run for the measured times.
 #
 # Build directories are reused when they exist (incremental); .ci/run removes them first.
@@ -88,7 +89,7 @@ case $what in
   all) run_asan && run_tsan ;;
   ci)
     run_asan "${CI_ASAN_TESTS[@]}"
-    timed fuzz env BOUNCECAL_FUZZ_BUILD="$asan_dir" \
+    timed fuzz env BOUNCECAL_FUZZ_BUILD="$asan_dir" FUZZ_SEED="${FUZZ_SEED:-1}" \
       "$root/tools/run-fuzz.sh" "${FUZZ_SECONDS:-30}"
     run_tsan ;;
   *) echo "usage: $0 [asan|tsan|all|ci]" >&2; exit 2 ;;

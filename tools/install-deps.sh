@@ -24,20 +24,13 @@ pkgs=(
 # Node.js and npm install the report's charting libraries at build time. A machine that already
 # has them (Debian's packages or another node build that ships npm) keeps its own.
 if ! command -v npm >/dev/null 2>&1; then pkgs+=(nodejs npm); fi
-missing=()
+# A gnuplot with cairo terminals (gnuplot-qt, gnuplot-x11) serves as well as gnuplot-nox.
+wanted=()
 for p in "${pkgs[@]}"; do
-  # A gnuplot with cairo terminals (gnuplot-qt, gnuplot-x11) serves as well as gnuplot-nox.
   if [ "$p" = gnuplot-nox ] && command -v gnuplot >/dev/null 2>&1; then continue; fi
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  wanted+=("$p")
 done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "install-deps: installing ${missing[*]}" >&2
-  SUDO=""
-  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+"$root/tools/apt-install-missing.sh" install-deps "${wanted[@]}"
 # The charting libraries inlined into the HTML report (versions pinned in package-lock.json).
 if [ ! -f "$root/node_modules/.package-lock.json" ] ||
    [ "$root/package-lock.json" -nt "$root/node_modules/.package-lock.json" ]; then

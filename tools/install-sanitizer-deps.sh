@@ -6,17 +6,4 @@
 # Idempotent: skips apt entirely when every package is already installed.
 set -euo pipefail
 pkgs=(clang libclang-rt-dev)
-missing=()
-for p in "${pkgs[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -eq 0 ]; then
-  exit 0
-fi
-echo "install-sanitizer-deps: installing ${missing[*]}" >&2
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends -o DPkg::Lock::Timeout=600 \
-  "${missing[@]}" >/dev/null
+"$(dirname "$0")/apt-install-missing.sh" install-sanitizer-deps "${pkgs[@]}"

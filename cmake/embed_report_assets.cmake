@@ -94,11 +94,5 @@ std::string_view ChartLibraryVersions() { return \"${versions}\"; }
 
 }  // namespace bouncecal::report_assets
 ")
-# Write only when changed, so an unchanged page does not recompile the library.
-if(EXISTS "${OUT}")
-  file(READ "${OUT}" old)
-  if(old STREQUAL content)
-    return()
-  endif()
-endif()
-file(WRITE "${OUT}" "${content}")
+include(${CMAKE_CURRENT_LIST_DIR}/write_if_changed.cmake)
+bouncecal_write_if_changed("${OUT}" "${content}")

@@ -31,11 +31,5 @@ ${entries}  };
 
 }  // namespace bouncecal::bundled_scene_files
 ")
-# Write only when changed, so unchanged scene files do not recompile the library.
-if(EXISTS "${OUT}")
-  file(READ "${OUT}" old)
-  if(old STREQUAL content)
-    return()
-  endif()
-endif()
-file(WRITE "${OUT}" "${content}")
+include(${CMAKE_CURRENT_LIST_DIR}/write_if_changed.cmake)
+bouncecal_write_if_changed("${OUT}" "${content}")

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -136,10 +137,22 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
   const json fit = json::parse(Slurp(params));
   ASSERT_EQ(fit["fit"]["outcome"], "converged") << fit["fit"]["message"];
 
-  // Export and run.
-  r = RunCommand(kBin, "export " + params + " --to " + c.target + " -o " + out +
-                           " --impacts 3 --allow-approximation --json");
+  // Export (from the scratch directory, which must then hold the deck and nothing new: the
+  // simulator's version query once left LIGGGHTS's log.liggghts in the working directory) and
+  // run.
+  auto entries = [&dir] {
+    std::set<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+      names.insert(entry.path().filename().string());
+    return names;
+  };
+  std::set<std::string> expected = entries();
+  expected.insert("deck");
+  r = RunCommand("sh", "-c 'cd " + dir.path().string() + " && " + kBin + " export " + params +
+                           " --to " + c.target + " -o " + out +
+                           " --impacts 3 --allow-approximation --json'");
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(entries(), expected);
   const json mapping = json::parse(r.out);
   EXPECT_EQ(mapping["target"], c.target);
   EXPECT_EQ(mapping["law"]["name"], c.law);

@@ -404,14 +404,16 @@ std::string DetectSimulatorVersion(ExportTarget target) {
   const std::string prog = SimulatorProgram(target);
   if (Trim(Capture("command -v " + prog + " 2>/dev/null")).empty()) return "";
   if (target == ExportTarget::kLammps) {
-    const std::string out = Capture("lmp -h </dev/null 2>&1");
+    // -log none: the simulators open a log file in the working directory before they read -h;
+    // exporting must not leave files outside its output directory.
+    const std::string out = Capture("lmp -log none -h </dev/null 2>&1");
     const std::string key = "Parallel Simulator - ";
     const size_t at = out.find(key);
     if (at == std::string::npos) return "LAMMPS (unknown version)";
     return "LAMMPS " + Trim(out.substr(at + key.size(), out.find('\n', at) - at - key.size()));
   }
   if (target == ExportTarget::kLiggghts) {
-    const std::string out = Capture("liggghts -h </dev/null 2>&1");
+    const std::string out = Capture("liggghts -log none -h </dev/null 2>&1");
     const std::string key = "(Version ";
     const size_t at = out.find(key);
     if (at == std::string::npos) return "LIGGGHTS (unknown version)";

@@ -5,6 +5,7 @@
 //   BOUNCECAL_BASELINE=/path/to/an/older/bouncecal build/bench_simulate
 //                                     (adds that binary's whole-process times, for before/after)
 //   build/bench_simulate --processes  (section 5 alone)
+//   build/bench_simulate --law NAME   (section 1 for one law alone)
 //
 // 1. Per registered law, a 30-impact sequence of the seed's 1 cm steel ball dropped from 0.2 m
 //    (contacts integrated, gravity in the contact) across rtol 1e-3 .. 1e-12: max error in e
@@ -505,6 +506,10 @@ bool Registered(const std::string& name) {
 int main(int argc, char** argv) {
   if (argc > 1 && std::string(argv[1]) == "--processes") {
     ProcessTable();  // section 5 alone
+    return 0;
+  }
+  if (argc > 2 && std::string(argv[1]) == "--law") {
+    AccuracyTable(argv[2]);  // section 1 for one law alone
     return 0;
   }
   const auto t0 = Clock::now();

@@ -29,4 +29,6 @@ void ContactDynamics::AtSwitch(const SensitivityJet&, SensitivityJet*) const {}
 
 double ContactDynamics::InternalEnergy(const double*) const { return 0.0; }
 
+bool ContactDynamics::ElasticPowerLaw(double*, double*) const { return false; }
+
 }  // namespace bouncecal

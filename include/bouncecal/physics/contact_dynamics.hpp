@@ -79,6 +79,11 @@ class ContactDynamics {
   virtual double ElasticEnergy(double delta_m, const double* state) const = 0;
   // Energy held in internal buffers (Jiang-Liu w_r), J; 0 for most laws.
   virtual double InternalEnergy(const double* state) const;
+  // The elastic energy at the initial state as a power law, ElasticEnergy(delta) =
+  // coefficient * delta^exponent, when it is one (Hertz: 0.4 k delta^2.5): the contact-time
+  // estimate then solves ElasticEnergy(delta_max) = m v^2 / 2 in closed form instead of by a
+  // search. Default: false (not known to be a power law).
+  virtual bool ElasticPowerLaw(double* coefficient, double* exponent) const;
 
   // The force on the branch the state is on.
   double Force(double delta_m, double delta_dot_m_s, const double* state) const {

@@ -109,7 +109,9 @@ struct ContactSensitivity {
 
 // An a-priori contact-time estimate (s) for scaling and decisions: the law's ContactTime
 // closed form when it has one, else 3 delta_max / v_in with delta_max from the elastic energy
-// (ElasticEnergy(delta_max) = m v_in^2 / 2; exact factor: pi for linear, 2.94 for Hertz).
+// (ElasticEnergy(delta_max) = m v_in^2 / 2, solved in closed form when the law's elastic energy
+// is a power law (ContactDynamics::ElasticPowerLaw), else by a search; exact factor: pi for
+// linear, 2.94 for Hertz).
 double EstimateContactTime(const ContactLaw& law, std::span<const double> p,
                            const ContactDynamics& dynamics, const ContactBody& body,
                            double v_in_m_s);

@@ -78,6 +78,11 @@ class HertzTsuji final : public LawImpl<HertzTsuji> {
   double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
     return delta_m > 0.0 ? 0.4 * c.k * delta_m * delta_m * std::sqrt(delta_m) : 0.0;
   }
+  bool ElasticPowerLaw(const Constants<double>& c, double* coefficient, double* exponent) const {
+    *coefficient = 0.4 * c.k;
+    *exponent = 2.5;
+    return true;
+  }
 
   std::optional<double> Restitution(std::span<const double> p, const ContactBody&,
                                     double) const override {

@@ -77,6 +77,11 @@ class HertzViscoelastic final : public LawImpl<HertzViscoelastic> {
   double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
     return delta_m > 0.0 ? 0.4 * c.k * delta_m * delta_m * std::sqrt(delta_m) : 0.0;
   }
+  bool ElasticPowerLaw(const Constants<double>& c, double* coefficient, double* exponent) const {
+    *coefficient = 0.4 * c.k;
+    *exponent = 2.5;
+    return true;
+  }
 
   static double B(std::span<const double> p, const ContactBody& body, double v) {
     return 1.5 * p[1] * std::pow(p[0] / body.mass_kg, 0.4) * std::pow(v, 0.2);

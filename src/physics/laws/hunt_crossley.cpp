@@ -92,6 +92,11 @@ class HuntCrossleyLaw : public LawImpl<HuntCrossleyLaw<V>> {
   double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
     return delta_m > 0.0 ? c.k * std::pow(delta_m, c.n + 1.0) / (c.n + 1.0) : 0.0;
   }
+  bool ElasticPowerLaw(const Constants<double>& c, double* coefficient, double* exponent) const {
+    *coefficient = c.k / (c.n + 1.0);
+    *exponent = c.n + 1.0;
+    return true;
+  }
 };
 
 class HuntCrossley final : public HuntCrossleyLaw<HcVariant::kAlphaGiven> {

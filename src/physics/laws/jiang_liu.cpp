@@ -139,6 +139,11 @@ class JiangLiu final : public LawImpl<JiangLiu> {
   double ElasticEnergy(const Constants<double>& c, double delta_m, const double*) const {
     return delta_m > 0.0 ? 0.4 * c.k * delta_m * delta_m * std::sqrt(delta_m) : 0.0;  // eq. 19
   }
+  bool ElasticPowerLaw(const Constants<double>& c, double* coefficient, double* exponent) const {
+    *coefficient = 0.4 * c.k;  // eq. 19 (independent of the state: u_n = -delta)
+    *exponent = 2.5;
+    return true;
+  }
   double InternalEnergy(const Constants<double>&, const double* state) const {
     return std::pow(std::max(state[0], 0.0), 4.0 / 3.0);  // w_r = s^(4/3)
   }

@@ -9,6 +9,7 @@
 //                              const T* state, bool branch) const;
 //   double ElasticEnergy(const Constants<double>&, double delta, const double* state) const;
 // and, where it has them (defaults below): kStateSize, StateRate, InternalEnergy, StateScale,
+// ElasticPowerLaw (the elastic energy's coefficient and exponent, if it is a power law),
 // kHasSwitch + Switch (+ AtSwitch, a state update at the switch), kOverlapRoot,
 // kContinuesBelowZero (a formula that stays smooth for delta < 0); the closed
 // forms its row lists, as the ContactLaw overrides.
@@ -79,6 +80,10 @@ class LawImpl : public LawBase {
   double StateScale(const C&, int, double length_m, double) const {
     return length_m;
   }
+  template <class C>
+  bool ElasticPowerLaw(const C&, double*, double*) const {
+    return false;
+  }
 };
 
 // The ContactDynamics of law L: its constants prepared once, in double and (with the
@@ -132,6 +137,9 @@ class DynamicsOf final : public ContactDynamics {
   }
   double InternalEnergy(const double* state) const override {
     return law_.InternalEnergy(c_, state);
+  }
+  bool ElasticPowerLaw(double* coefficient, double* exponent) const override {
+    return law_.ElasticPowerLaw(c_, coefficient, exponent);
   }
 
  private:

@@ -247,6 +247,47 @@ TEST(ContactIntegrator, ContactTimeEstimateFromTheElasticEnergy) {
   EXPECT_NEAR(estimate / exact, 3.0 / 2.94, 0.01);
 }
 
+TEST(ContactIntegrator, DeclaredElasticPowerLawsAreTheLawsElasticEnergy) {
+  // The contact-time estimate solves ElasticEnergy(delta_max) = m v^2 / 2 in closed form for a
+  // law that declares its elastic energy a power law a delta^b: the declaration must be that
+  // energy (a law whose energy changes without its declaration would be scaled wrongly).
+  const ContactBody body = BodyFromScene(Scene{});
+  int declared = 0;
+  for (const LawInfo& info : RegisteredLaws()) {
+    if (info.needs_expression) continue;
+    SCOPED_TRACE(info.name);
+    const auto law = Law(info.name, {});
+    const auto dyn = law->Dynamics(law->ParameterValues(), body);
+    double a = 0.0, b = 0.0;
+    if (!dyn->ElasticPowerLaw(&a, &b)) continue;
+    ++declared;
+    std::array<double, 8> s0{};
+    dyn->InitialState(s0.data());
+    for (double d : {1e-9, 1e-6, 1e-4}) {
+      EXPECT_NEAR(dyn->ElasticEnergy(d, s0.data()) / (a * std::pow(d, b)), 1.0, 1e-12) << d;
+    }
+  }
+  EXPECT_GE(declared, 7);  // hertz-tsuji, hertz-viscoelastic, jiang-liu, four hunt-crossley
+}
+
+TEST(ContactIntegrator, ClosedFormContactTimeScaleIsWhatTheEnergySearchFinds) {
+  // Hunt-Crossley with n = 2 (no ContactTime closed form): 3 delta_max / v with delta_max from
+  // bisection on the law's own ElasticEnergy, here in the test.
+  const ContactBody body = BodyFromScene(Scene{});
+  const auto hc = Law("hunt-crossley", {{"n", 2.0}, {"alpha", 0.05}});
+  const std::vector<double> p = hc->ParameterValues();
+  const auto dyn = hc->Dynamics(p, body);
+  for (double v : {1e-3, 0.3, 2.0}) {
+    const double target = 0.5 * body.mass_kg * v * v;
+    double lo = 0.0, hi = body.radius_m;
+    for (int i = 0; i < 200; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (dyn->ElasticEnergy(mid, nullptr) < target ? lo : hi) = mid;
+    }
+    EXPECT_NEAR(EstimateContactTime(*hc, p, *dyn, body, v) / (3.0 * hi / v), 1.0, 1e-12) << v;
+  }
+}
+
 TEST(ContactIntegrator, OneContactsSensitivitiesMatchCentralDifferences) {
   const ContactBody body = BodyFromScene(Scene{});
   const PlateModel plate{0.2, 5e6, 10.0};

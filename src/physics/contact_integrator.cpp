@@ -987,20 +987,23 @@ double EstimateContactTime(const ContactLaw& law, std::span<const double> p,
   const double target = 0.5 * body.mass_kg * v_in_m_s * v_in_m_s;
   // Linear spring: t_c = pi delta_max / v; Hertz: 2.94 delta_max / v (docs/physics.md §2).
   constexpr double kTimeOverCrossing = 3.0;
+  // The search below brackets delta_max between these (m, and in ball radii).
+  constexpr double kSmallestOverlap = 1e-18, kLargestOverlapRadii = 1e3;
   double coefficient = 0.0, exponent = 0.0;
   if (dynamics.ElasticPowerLaw(&coefficient, &exponent) && coefficient > 0.0 && exponent > 0.0) {
-    // W = a delta^b: delta_max = (m v^2 / (2 a))^(1/b), what the search below finds (to
-    // rounding) with one pow instead of ~80 energy evaluations.
+    // W = a delta^b: delta_max = (m v^2 / (2 a))^(1/b), what the search finds (to rounding)
+    // with one pow instead of ~80 energy evaluations; outside the search's bracket the search
+    // decides, as before.
     const double delta_max_m = std::pow(target / coefficient, 1.0 / exponent);
-    if (std::isfinite(delta_max_m) && delta_max_m > 0.0) {
+    if (delta_max_m >= kSmallestOverlap && delta_max_m <= kLargestOverlapRadii * body.radius_m) {
       return kTimeOverCrossing * delta_max_m / v_in_m_s;
     }
   }
   std::array<double, kMaxLawState> s0{};
   if (dynamics.StateSize() <= kMaxLawState) dynamics.InitialState(s0.data());
   // Bracket delta_max on a log scale between 1e-18 m and 1e3 R, then bisect in log space.
-  double lo = 1e-18, hi = 1e-18;
-  while (hi < 1e3 * body.radius_m && ElasticAt(dynamics, s0.data(), hi) < target) {
+  double lo = kSmallestOverlap, hi = kSmallestOverlap;
+  while (hi < kLargestOverlapRadii * body.radius_m && ElasticAt(dynamics, s0.data(), hi) < target) {
     lo = hi;
     hi *= 10.0;
   }

@@ -86,14 +86,18 @@ SmoothCurve FitCurve(const RestitutionData& data, std::vector<int> terms,
       slopes[static_cast<size_t>(k)] = c.Slope(data.points[static_cast<size_t>(k)].u_m_s);
     }
   }
-  const Eigen::MatrixXd cov =
-      ct + c.scatter.sigma * c.scatter.sigma * Eigen::MatrixXd::Identity(n, n);
+  const ScatterProblem last(-e, x, ct);
+  const Eigen::MatrixXd cov = last.Covariance(c.scatter.sigma);
+  const Eigen::VectorXd fitted_var = last.FittedVariance(c.scatter.sigma);
+  if (fitted_var.size() != n) {
+    c.scatter.ok = false;
+    return c;
+  }
   c.residual.resize(static_cast<size_t>(n));
   c.z.resize(static_cast<size_t>(n));
   for (int k = 0; k < n; ++k) {
-    const Eigen::VectorXd xk = x.row(k).transpose();
-    const double r = xk.dot(c.beta) - e(k);
-    const double var = cov(k, k) - xk.dot(c.beta_cov * xk);  // residual variance (leverage)
+    const double r = x.row(k).dot(c.beta) - e(k);
+    const double var = cov(k, k) - fitted_var(k);  // residual variance (leverage)
     c.residual[static_cast<size_t>(k)] = r;
     c.z[static_cast<size_t>(k)] = var > 0.0 ? r / std::sqrt(var) : kNaN;
   }

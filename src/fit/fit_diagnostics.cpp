@@ -61,10 +61,15 @@ double TrendChi2(const FitProblem& fp, const Solution& s, int* dof, double* tren
   ScatterOptions so;
   const ScatterProblem sp(s.residuals, j, s.timing_cov, {}, so);
   const ScatterFit f = fp.options.estimate_scatter ? sp.Fit() : ScatterFit{};
-  const ScatterProblem::Evaluation ev = sp.At(fp.options.estimate_scatter ? f.sigma : 0.0);
-  if (!ev.ok) return 0.0;
-  const Eigen::VectorXd beta = ev.step.tail(extra);
-  const Eigen::MatrixXd cov = ev.covariance.bottomRightCorner(extra, extra);
+  const double sigma_s = fp.options.estimate_scatter ? f.sigma : 0.0;
+  const ScatterProblem::Evaluation ev = sp.At(sigma_s);
+  // The law alone at the same C: the trend's Wald statistic beta^T Cov_beta^-1 beta is the drop
+  // in chi2 the trend gives (the extra-sum-of-squares identity of the general linear hypothesis,
+  // Seber & Lee, Linear Regression Analysis, 2nd ed., ch. 4), computed without inverting a block
+  // of the covariance (which cancels when the trend is nearly collinear with the law's columns).
+  const ScatterProblem::Evaluation ev0 =
+      ScatterProblem(s.residuals, s.jacobian, s.timing_cov, {}, so).At(sigma_s);
+  if (!ev.ok || !ev0.ok) return 0.0;
   *dof = extra;
   // Size of the misfit: how much the predictions move when the trend is allowed, against the
   // scatter about the law-plus-trend and the typical timing sigma of e.
@@ -73,9 +78,8 @@ double TrendChi2(const FitProblem& fp, const Solution& s, int* dof, double* tren
   std::vector<double> es;
   for (const auto& pt : fp.data.points) es.push_back(pt.e_sigma);
   std::nth_element(es.begin(), es.begin() + static_cast<long>(es.size() / 2), es.end());
-  const double sh1 = fp.options.estimate_scatter ? f.sigma : 0.0;
-  *scale = std::hypot(sh1, es[es.size() / 2]);
-  return beta.dot(cov.ldlt().solve(beta));
+  *scale = std::hypot(sigma_s, es[es.size() / 2]);
+  return std::max(ev0.chi2 - ev.chi2, 0.0);
 }
 
 Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u,

@@ -16,9 +16,6 @@ namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// Eigenvalues of J^T C^-1 J below this fraction of the largest span its null space: the square
-// of the 1e-8 singular-value ratio that double precision resolves in J.
-constexpr double kNullEigenRatio = 1e-16;
 
 double Median(std::vector<double> v) {
   if (v.empty()) return kNaN;
@@ -104,8 +101,9 @@ ScatterProblem::ScatterProblem(Eigen::VectorXd r, Eigen::MatrixXd J, Eigen::Matr
                                Eigen::MatrixXd design, ScatterOptions options)
     : r_(std::move(r)), j_(std::move(J)), ct_(std::move(timing_cov)), options_(options) {
   const Eigen::Index n = r_.size();
-  ggt_ = design.size() == 0 ? Eigen::MatrixXd(Eigen::MatrixXd::Identity(n, n))
-                            : Eigen::MatrixXd(design * design.transpose());
+  identity_design_ = design.size() == 0;
+  ggt_ = identity_design_ ? Eigen::MatrixXd(Eigen::MatrixXd::Identity(n, n))
+                          : Eigen::MatrixXd(design * design.transpose());
   std::vector<double> dt, dg;
   for (Eigen::Index k = 0; k < n; ++k) {
     if (ct_(k, k) > 0.0) dt.push_back(ct_(k, k));
@@ -114,16 +112,69 @@ ScatterProblem::ScatterProblem(Eigen::VectorXd r, Eigen::MatrixXd J, Eigen::Matr
   const double mt = Median(dt), mg = Median(dg);
   scale_ = std::isfinite(mt) && std::isfinite(mg) && mg > 0.0 ? std::sqrt(mt / mg) : 1e-6;
   if (!(scale_ > 0.0)) scale_ = 1e-6;
+  column_norm_ = j_.colwise().norm().transpose();
 }
 
 Eigen::MatrixXd ScatterProblem::Covariance(double sigma) const {
   return ct_ + sigma * sigma * ggt_;
 }
 
+void ScatterProblem::SolveWhitened(const Eigen::MatrixXd& jw, const Eigen::VectorXd& rw,
+                                   Evaluation* ev, Eigen::MatrixXd* basis) const {
+  const Eigen::Index p = jw.cols();
+  ev->step = Eigen::VectorXd::Zero(p);
+  ev->covariance = Eigen::MatrixXd::Zero(p, p);
+  ev->log_det_info = 0.0;
+  // Columns that move the model, scaled to unit norm by the unwhitened |J_j| (the same scale at
+  // every sigma_s, so the REML term's constant does not depend on sigma_s).
+  std::vector<Eigen::Index> cols;
+  for (Eigen::Index j = 0; j < p; ++j) {
+    if (column_norm_(j) > 0.0 && std::isfinite(column_norm_(j))) cols.push_back(j);
+  }
+  Eigen::VectorXd rt = rw;
+  if (basis) basis->resize(rw.size(), 0);
+  if (!cols.empty()) {
+    const Eigen::Index q = static_cast<Eigen::Index>(cols.size());
+    Eigen::MatrixXd js(jw.rows(), q);
+    for (Eigen::Index i = 0; i < q; ++i) {
+      js.col(i) = jw.col(cols[static_cast<size_t>(i)]) / column_norm_(cols[static_cast<size_t>(i)]);
+    }
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(js, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    const double smax = sv.size() > 0 ? sv(0) : 0.0;
+    Eigen::VectorXd ds = Eigen::VectorXd::Zero(q);
+    Eigen::MatrixXd covs = Eigen::MatrixXd::Zero(q, q);
+    Eigen::Index rank = 0;
+    for (Eigen::Index i = 0; i < sv.size(); ++i) {
+      if (!(sv(i) > kRankCut * smax)) break;  // sorted: the rest is the null space
+      ++rank;
+      const Eigen::VectorXd u = svd.matrixU().col(i), v = svd.matrixV().col(i);
+      const double a = u.dot(rw);
+      rt -= a * u;  // the residual's component in the column space, removed
+      ds -= v * (a / sv(i));
+      covs += v * v.transpose() / (sv(i) * sv(i));
+      ev->log_det_info += 2.0 * std::log(sv(i));
+    }
+    if (basis) *basis = svd.matrixU().leftCols(rank);
+    // Back to the parameters' units: d = S^-1 ds, cov = S^-1 covs S^-1, det picks up |J_j|^2.
+    for (Eigen::Index a = 0; a < q; ++a) {
+      const Eigen::Index ja = cols[static_cast<size_t>(a)];
+      ev->log_det_info += 2.0 * std::log(column_norm_(ja));
+      ev->step(ja) = ds(a) / column_norm_(ja);
+      for (Eigen::Index b = 0; b < q; ++b) {
+        const Eigen::Index jb = cols[static_cast<size_t>(b)];
+        ev->covariance(ja, jb) = covs(a, b) / (column_norm_(ja) * column_norm_(jb));
+      }
+    }
+  }
+  ev->chi2 = rt.squaredNorm();
+  ev->criterion = 0.5 * (ev->log_det_c + ev->chi2 + (options_.reml ? ev->log_det_info : 0.0));
+  ev->ok = std::isfinite(ev->criterion);
+}
+
 ScatterProblem::Evaluation ScatterProblem::At(double sigma) const {
   Evaluation ev;
   const Eigen::Index n = r_.size();
-  const Eigen::Index p = j_.cols();
   Eigen::LLT<Eigen::MatrixXd> llt(Covariance(sigma));
   if (llt.info() != Eigen::Success) return ev;
   const Eigen::MatrixXd& l = llt.matrixLLT();
@@ -131,33 +182,83 @@ ScatterProblem::Evaluation ScatterProblem::At(double sigma) const {
     if (!(l(k, k) > 0.0)) return ev;
     ev.log_det_c += 2.0 * std::log(l(k, k));
   }
-  const Eigen::VectorXd rw = llt.matrixL().solve(r_);
-  Eigen::VectorXd rt = rw;
-  ev.step = Eigen::VectorXd::Zero(p);
-  ev.covariance = Eigen::MatrixXd::Zero(p, p);
-  if (p > 0) {
-    // The information J^T C^-1 J by eigen-decomposition: parameters the data cannot tell apart
-    // (a null direction) are left out of the step, the log-determinant and the covariance
-    // (a pseudo-inverse), so an undetermined parameter does not break the fit of the others; the
-    // caller reports it as undetermined.
-    const Eigen::MatrixXd jw = llt.matrixL().solve(j_);
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(jw.transpose() * jw);
-    if (es.info() != Eigen::Success) return ev;
-    const Eigen::VectorXd lambda = es.eigenvalues();
-    const double lmax = std::max(lambda.maxCoeff(), 0.0);  // 0: no parameter moves the model
-    Eigen::MatrixXd pinv = Eigen::MatrixXd::Zero(p, p);
-    for (Eigen::Index i = 0; i < p; ++i) {
-      if (!(lambda(i) > kNullEigenRatio * lmax)) continue;
-      ev.log_det_info += std::log(lambda(i));
-      pinv += es.eigenvectors().col(i) * es.eigenvectors().col(i).transpose() / lambda(i);
+  // Parameters the data cannot tell apart (a null direction) are left out of the step, the
+  // log-determinant and the covariance (a pseudo-inverse), so an undetermined parameter does not
+  // break the fit of the others; the caller reports it as undetermined.
+  SolveWhitened(llt.matrixL().solve(j_), llt.matrixL().solve(r_), &ev);
+  return ev;
+}
+
+Eigen::VectorXd ScatterProblem::FittedVariance(double sigma) const {
+  Eigen::LLT<Eigen::MatrixXd> llt(Covariance(sigma));
+  if (llt.info() != Eigen::Success) return {};
+  Evaluation ev;
+  Eigen::MatrixXd u;
+  SolveWhitened(llt.matrixL().solve(j_), llt.matrixL().solve(r_), &ev, &u);
+  return (llt.matrixL() * u).rowwise().squaredNorm();
+}
+
+ScatterProfile::ScatterProfile(const ScatterProblem& problem) : problem_(problem) {
+  const Eigen::Index n = problem.r_.size();
+  if (n == 0) return;
+  Eigen::MatrixXd m;  // the matrix to tridiagonalise: A (G = I) or L^-1 B L^-T
+  Eigen::MatrixXd jf = problem.j_;
+  Eigen::VectorXd rf = problem.r_;
+  if (problem.identity_design_) {
+    m = problem.ct_;
+  } else {
+    const Eigen::LLT<Eigen::MatrixXd> llt(problem.ct_);
+    if (llt.info() != Eigen::Success) return;
+    const Eigen::MatrixXd& l = llt.matrixLLT();
+    for (Eigen::Index k = 0; k < n; ++k) {
+      if (!(l(k, k) > 0.0)) return;
+      log_det_f_ += 2.0 * std::log(l(k, k));
     }
-    ev.step = -pinv * (jw.transpose() * rw);
-    rt = rw + jw * ev.step;
-    ev.covariance = pinv;
+    const Eigen::MatrixXd li_b = llt.matrixL().solve(problem.ggt_);
+    m = llt.matrixL().solve(li_b.transpose());
+    jf = llt.matrixL().solve(jf);
+    rf = llt.matrixL().solve(rf);
   }
-  ev.chi2 = rt.squaredNorm();
-  ev.criterion = 0.5 * (ev.log_det_c + ev.chi2 + (options_.reml ? ev.log_det_info : 0.0));
-  ev.ok = std::isfinite(ev.criterion);
+  const Eigen::Tridiagonalization<Eigen::MatrixXd> tri(m);
+  jf_ = tri.matrixQ().transpose() * jf;
+  rf_ = tri.matrixQ().transpose() * rf;
+  const Eigen::VectorXd diag = tri.diagonal();
+  Eigen::VectorXd off = Eigen::VectorXd::Zero(n);  // off(k): element (k, k - 1)
+  if (n > 1) off.tail(n - 1) = tri.subDiagonal();
+  const Eigen::VectorXd ones = Eigen::VectorXd::Ones(n), zeros = Eigen::VectorXd::Zero(n);
+  p_diag_ = problem.identity_design_ ? diag : ones;
+  p_off_ = problem.identity_design_ ? off : zeros;
+  r_diag_ = problem.identity_design_ ? ones : diag;
+  r_off_ = problem.identity_design_ ? zeros : off;
+  ok_ = jf_.allFinite() && rf_.allFinite();
+}
+
+ScatterProblem::Evaluation ScatterProfile::At(double sigma) const {
+  if (!ok_) return problem_.At(sigma);
+  ScatterProblem::Evaluation ev;
+  const Eigen::Index n = rf_.size();
+  const double s2 = sigma * sigma;
+  // LDL^T of K = P + sigma^2 R (tridiagonal): l_k = K_k,k-1 / d_k-1, d_k = K_kk - l_k K_k,k-1.
+  Eigen::VectorXd d(n), l = Eigen::VectorXd::Zero(n);
+  ev.log_det_c = log_det_f_;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double off = p_off_(k) + s2 * r_off_(k);
+    if (k > 0) l(k) = off / d(k - 1);
+    d(k) = p_diag_(k) + s2 * r_diag_(k) - l(k) * off;
+    if (!(d(k) > 0.0) || !std::isfinite(d(k))) return problem_.At(sigma);
+    ev.log_det_c += std::log(d(k));
+  }
+  // Whitened rows: D^-1/2 L^-1 (F^-1 J), D^-1/2 L^-1 (F^-1 r) (forward substitution, then scale).
+  Eigen::MatrixXd jw = jf_;
+  Eigen::VectorXd rw = rf_;
+  for (Eigen::Index k = 1; k < n; ++k) {
+    jw.row(k) -= l(k) * jw.row(k - 1);
+    rw(k) -= l(k) * rw(k - 1);
+  }
+  const Eigen::VectorXd w = d.cwiseSqrt().cwiseInverse();
+  jw = w.asDiagonal() * jw;
+  rw = rw.cwiseProduct(w);
+  problem_.SolveWhitened(jw, rw, &ev);
   return ev;
 }
 

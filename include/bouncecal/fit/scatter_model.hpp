@@ -14,6 +14,14 @@
 // keeps sigma_s from being biased low with ~10-30 bounces (plain ML divides by n instead of
 // n - p). Parameter covariance: (J^T C^-1 J)^-1 at the optimum; chi2 = r~^T C^-1 r~ ~ n - p.
 //
+// Numerics: the normal matrix J^T C^-1 J is never formed (its condition is the square of J's:
+// a trend in ln v, v and (ln v)^2 over a narrow speed range reaches 1e15 and put the rank
+// decision at the rounding level). Each evaluation whitens J and r by a factor W with
+// W^T W = C^-1 and solves the least-squares problem by an SVD of the whitened Jacobian with its
+// columns scaled to unit norm (so the result does not depend on the parameters' units);
+// directions with singular values below kRankCut of the largest are the null space, left out
+// of the step, the log-determinant and the covariance (a pseudo-inverse).
+//
 //   ScatterProblem sp(r, J, C_t, {});           // G = identity
 //   ScatterFit f = sp.Fit();                    // f.sigma, f.sigma_sigma, f.step, f.covariance
 //
@@ -102,15 +110,61 @@ class ScatterProblem {
     Eigen::VectorXd step;
     Eigen::MatrixXd covariance;
   };
-  Evaluation At(double sigma) const;  // criterion and GLS step at one sigma_s
+  Evaluation At(double sigma) const;  // criterion and GLS step at one sigma_s (Cholesky of C)
   ScatterFit Fit() const;             // sigma_s minimising the criterion (and its sigma)
   Eigen::MatrixXd Covariance(double sigma) const;  // C(sigma)
+  // diag(J Cov J^T) at sigma_s, the variance of the fitted model at each point (a GLS
+  // residual's is C_kk minus it): |(L U)_k|^2 with C = L L^T and U the whitened Jacobian's left
+  // singular vectors, which does not cancel as x_k^T Cov x_k does when J is ill-conditioned.
+  // Empty when C(sigma) is not positive definite.
+  Eigen::VectorXd FittedVariance(double sigma) const;
+
+  // Singular values of the column-scaled whitened Jacobian at or below this fraction of the
+  // largest span the null space: columns of unit norm make the ratio the sine of the angle
+  // between a column and the span of the others, which the SVD resolves to ~1e-15 for exact
+  // columns and finite differences of converged simulations (relative steps 1e-6, tolerance
+  // 1e-10) to ~1e-9; 1e-10 keeps a trend of a narrow speed range (1e-7) and cuts what rounding
+  // leaves of exact degeneracy.
+  static constexpr double kRankCut = 1e-10;
 
  private:
+  friend class ScatterProfile;
+  // The GLS step, chi2, covariance and log det(J^T C^-1 J) of the whitened problem
+  // min |rw + jw d|^2 (rw = W r, jw = W J), by the SVD of jw with columns scaled to unit norm.
+  // basis (optional): the kept left singular vectors (n x rank).
+  void SolveWhitened(const Eigen::MatrixXd& jw, const Eigen::VectorXd& rw, Evaluation* ev,
+                     Eigen::MatrixXd* basis = nullptr) const;
+
   Eigen::VectorXd r_;
   Eigen::MatrixXd j_, ct_, ggt_;
+  bool identity_design_ = true;  // G = I (ggt_ is the identity)
   ScatterOptions options_;
-  double scale_ = 1.0;  // typical sigma_s scale: sqrt(median C_t / median (G G^T))
+  double scale_ = 1.0;           // typical sigma_s scale: sqrt(median C_t / median (G G^T))
+  Eigen::VectorXd column_norm_;  // |J_j| (0: the parameter does not move the model)
+};
+
+// The criterion of a ScatterProblem at many sigma_s for the cost of one reduction (what Fit
+// evaluates ~100 times). With A = C_t and B = G G^T, C(sigma) = A + sigma^2 B is brought once to
+//   C(sigma) = F (P + sigma^2 R) F^T,   P + sigma^2 R tridiagonal,
+// by Householder tridiagonalisation (Golub & Van Loan, Matrix Computations, 4th ed., §8.3.1):
+// for G = I, A = Q T Q^T, F = Q, P = T, R = I; otherwise A = L L^T (Cholesky),
+// L^-1 B L^-T = Q T Q^T, F = L Q, P = I, R = T. Each sigma_s is then an O(n) LDL^T of the
+// tridiagonal (§4.3.6), log det C = log det(F F^T) + sum log d_i, and the whitened J and r are
+// (D^-1/2 L^-1) F^-1 J, F^-1 r from the precomputed F^-1 J, F^-1 r: O(n p^2) per sigma_s with the
+// SVD instead of the O(n^3) Cholesky. Equal to ScatterProblem::At within rounding (tested to
+// 1e-10); a sigma_s where the tridiagonal is not positive definite falls back to At.
+class ScatterProfile {
+ public:
+  explicit ScatterProfile(const ScatterProblem& problem);
+  ScatterProblem::Evaluation At(double sigma) const;
+
+ private:
+  const ScatterProblem& problem_;
+  bool ok_ = false;  // the reduction succeeded (else every At is the problem's own)
+  Eigen::VectorXd p_diag_, p_off_, r_diag_, r_off_;
+  double log_det_f_ = 0.0;  // log det(F F^T)
+  Eigen::MatrixXd jf_;      // F^-1 J
+  Eigen::VectorXd rf_;      // F^-1 r
 };
 
 // Two-sided normal quantile z with P(|Z| > z) = alpha (alpha in (0, 1)).

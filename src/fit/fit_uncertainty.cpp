@@ -269,13 +269,15 @@ Uncertainty EstimateUncertainty(const FitProblem& fp, const Solution& s, std::at
     return Eigen::VectorXd(ModelColumn(fp, s.p, i, sims).cwiseProduct(w) *
                            std::max(std::abs(s.p[i]), su.typical[i]));
   };
+  Eigen::MatrixXd cols(nd, na + 1);  // the active columns (the same for every held one), then it
+  bool have_active = false;
   for (size_t i = 0; i < nall && nd > 0; ++i) {
     if (std::find(su.free.begin(), su.free.end(), static_cast<int>(i)) != su.free.end()) continue;
-    Eigen::MatrixXd cols(nd, na + 1);
-    for (Eigen::Index a = 0; a < na; ++a) {
+    for (Eigen::Index a = 0; a < na && !have_active; ++a) {
       cols.col(a) = rel_column(
           static_cast<size_t>(su.free[static_cast<size_t>(active[static_cast<size_t>(a)])]));
     }
+    have_active = true;
     cols.col(na) = rel_column(i);
     std::vector<double> rel;
     std::vector<bool> null;

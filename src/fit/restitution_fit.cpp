@@ -11,6 +11,8 @@
 // REML profile (ScatterProblem::Fit); the two alternate until sigma_s settles.
 #include <algorithm>
 #include <cmath>
+#include <tuple>
+#include <utility>
 
 #include <ceres/ceres.h>
 
@@ -247,7 +249,12 @@ class RestitutionCost final : public ceres::CostFunction {
     const bool want = jacobians && jacobians[0];
     Eigen::VectorXd e;
     Eigen::MatrixXd jac;
-    if (!ModelValues(fp_, p, active_, &e, want ? &jac : nullptr, sims_)) return false;
+    if (const auto last = last_.Find(p, want)) {
+      std::tie(e, jac) = *last;
+    } else {
+      if (!ModelValues(fp_, p, active_, &e, want ? &jac : nullptr, sims_)) return false;
+      last_.Store(p, want, {e, jac});
+    }
     const int n = fp_.data.size();
     Eigen::VectorXd r(n);
     for (int k = 0; k < n; ++k)
@@ -269,6 +276,7 @@ class RestitutionCost final : public ceres::CostFunction {
   const Eigen::VectorXd offsets_;
   const Eigen::MatrixXd l_;
   std::atomic<long>* sims_;
+  LastEvaluation<std::pair<Eigen::VectorXd, Eigen::MatrixXd>> last_;  // e and de/du at p
 };
 
 ceres::LossFunction* MakeLoss(const CalibrationOptions& o) {

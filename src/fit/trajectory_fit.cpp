@@ -350,8 +350,14 @@ class TrajectoryCost final : public ceres::CostFunction {
     const double v0 = fixed_v0_ ? *fixed_v0_ : parameters[1][0];
     const double t0 = parameters[fixed_v0_ ? 1 : 2][0];
     const bool want = jacobians != nullptr;
-    const auto s = model_.Times(p, v0, want, sims_);
-    if (!s) return false;
+    std::vector<double> key = p;
+    key.push_back(v0);
+    auto s = last_.Find(key, want);
+    if (!s) {
+      s = model_.Times(p, v0, want, sims_);
+      if (!s) return false;
+      last_.Store(std::move(key), want, *s);
+    }
     const int n = model_.size();
     Eigen::VectorXd r(n);
     for (int k = 0; k < n; ++k) r(k) = t0 + s->times_s[model_.sim_index(k)] - model_.time(k);
@@ -387,6 +393,7 @@ class TrajectoryCost final : public ceres::CostFunction {
   const std::optional<double> fixed_v0_;
   const Eigen::MatrixXd l_;
   std::atomic<long>* sims_;
+  LastEvaluation<SimPoint> last_;  // the simulated times (and Jacobian) at p, v0
 };
 
 // The drop's first impact speed as a measurement of v0: (v0 - v_drop) / sigma_v.

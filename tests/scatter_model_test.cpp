@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "bouncecal/fit/scatter_model.hpp"
@@ -240,6 +241,19 @@ TEST(ScatterModel, IllConditionedTrendIsTheSameFitRescaledAndPermuted) {
     EXPECT_NEAR(other.sigma, f.sigma, 1e-5 * f.sigma);
   }
   EXPECT_NEAR(p_data.Fit().sigma, a * f.sigma, 1e-5 * a * f.sigma);
+}
+
+TEST(ScatterModel, NonFiniteJacobianIsAFailedEvaluationNotANullColumn) {
+  // A NaN column (a failed simulation) must fail the fit, not be dropped as undetermined.
+  const LinearCase c = MakeCase(12);
+  std::mt19937_64 rng(29);
+  const Eigen::VectorXd y = Draw(c, 0.004, &rng);
+  Eigen::MatrixXd j = c.x;
+  j(3, 1) = std::numeric_limits<double>::quiet_NaN();
+  const ScatterProblem sp(-y, j, c.ct);
+  EXPECT_FALSE(sp.At(0.003).ok);
+  EXPECT_FALSE(ScatterProfile(sp).At(0.003).ok);
+  EXPECT_FALSE(sp.Fit().ok);
 }
 
 // C(sigma) = C_t + sigma^2 G G^T for a design G that is not the identity (impact times: the

@@ -125,6 +125,9 @@ void ScatterProblem::SolveWhitened(const Eigen::MatrixXd& jw, const Eigen::Vecto
   ev->step = Eigen::VectorXd::Zero(p);
   ev->covariance = Eigen::MatrixXd::Zero(p, p);
   ev->log_det_info = 0.0;
+  ev->ok = false;
+  if (!jw.allFinite() || !rw.allFinite())
+    return;  // a NaN is a failed evaluation, not a null column
   // Columns that move the model, scaled to unit norm by the unwhitened |J_j| (the same scale at
   // every sigma_s, so the REML term's constant does not depend on sigma_s).
   std::vector<Eigen::Index> cols;

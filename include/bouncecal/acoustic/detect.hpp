@@ -73,6 +73,13 @@ struct DetectOptions {
   // (between drops), so that memory stays bounded whatever the length. Shorter ones are detected
   // whole. A sequence that runs across a cut gets the warning block_split.
   double max_block_s = 120.0;
+  // Threads detection may use, the calling one included (0: the machine's hardware
+  // concurrency, at most kMaxAutoThreads, core/parallel.hpp). The blocks of a long recording are
+  // detected concurrently (the reader stays at most one block ahead of them), a single block's
+  // independent stages split among the threads. The result is the same, to the bit, whatever
+  // the count. Callers that already run several detections at once (a batch on --jobs workers)
+  // set 1.
+  int threads = 0;
   bool IsValid(std::string* error) const;
 };
 

@@ -720,9 +720,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     // The block takes frames [buf_start, block_end); the next starts kBlockMarginS before the cut.
     const std::int64_t next = b.last ? buf_end : std::max(buf_start, cut - margin);
     for (std::vector<float>& c : buf) {
-      std::vector<float> rest;
-      rest.reserve(static_cast<std::size_t>(cap));  // the next block is read into it
-      rest.assign(c.begin() + static_cast<std::ptrdiff_t>(next - buf_start), c.end());
+      std::vector<float> rest(c.begin() + static_cast<std::ptrdiff_t>(next - buf_start), c.end());
       c.resize(static_cast<std::size_t>(block_end - buf_start));
       b.channels.push_back(std::move(c));
       c = std::move(rest);

@@ -75,11 +75,13 @@ struct DetectOptions {
   double max_block_s = 120.0;
   // Threads detection may use, the calling one included (0: the machine's hardware
   // concurrency, at most kMaxAutoThreads, core/parallel.hpp). The blocks of a long recording are
-  // detected concurrently (the reader stays at most one block ahead of them), a single block's
-  // independent stages split among the threads. The result is the same, to the bit, whatever
-  // the count. Callers that already run several detections at once (a batch on --jobs workers)
-  // set 1.
-  int threads = 0;
+  // detected concurrently (the reader stays at most one block ahead of them: at most threads + 1
+  // blocks in memory), a single block's independent stages split among the threads. The result
+  // is the same, to the bit, whatever the count. Default 1: on the shared 2-core machine (other
+  // builds keeping both cores busy) two threads took more CPU time (+20-50 %: page faults and
+  // cache sharing of two blocks in flight) and no less wall time (README, "Long recordings");
+  // and callers that run several detections at once (a batch on --jobs workers) need 1.
+  int threads = 1;
   bool IsValid(std::string* error) const;
 };
 

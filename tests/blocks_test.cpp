@@ -218,6 +218,83 @@ TEST(DetectBlocks, EveryDropOfAManyDropRecordingIsFound) {
   }
 }
 
+// Every field of two detections, compared exactly (doubles to the bit).
+void ExpectSameDetection(const DetectionResult& a, const DetectionResult& b,
+                         const std::string& what) {
+  auto same_impact = [&](const Impact& x, const Impact& y, const std::string& where) {
+    EXPECT_EQ(x.time_s, y.time_s) << what << where;
+    EXPECT_EQ(x.sigma_s, y.sigma_s) << what << where;
+    EXPECT_EQ(x.amplitude, y.amplitude) << what << where;
+    EXPECT_EQ(x.snr_db, y.snr_db) << what << where;
+    EXPECT_EQ(x.score, y.score) << what << where;
+    EXPECT_EQ(x.clipped, y.clipped) << what << where;
+  };
+  ASSERT_EQ(a.candidates.size(), b.candidates.size()) << what;
+  for (std::size_t i = 0; i < a.candidates.size(); ++i)
+    same_impact(a.candidates[i], b.candidates[i], " candidate " + std::to_string(i));
+  ASSERT_EQ(a.sequences.size(), b.sequences.size()) << what;
+  for (std::size_t s = 0; s < a.sequences.size(); ++s) {
+    const Sequence& p = a.sequences[s];
+    const Sequence& q = b.sequences[s];
+    ASSERT_EQ(p.impacts.size(), q.impacts.size()) << what << " sequence " << s;
+    for (std::size_t k = 0; k < p.impacts.size(); ++k)
+      same_impact(p.impacts[k], q.impacts[k],
+                  " sequence " + std::to_string(s) + " impact " + std::to_string(k));
+    ASSERT_EQ(p.removed.size(), q.removed.size()) << what << " sequence " << s;
+    for (std::size_t k = 0; k < p.removed.size(); ++k) {
+      same_impact(p.removed[k].impact, q.removed[k].impact, " removed " + std::to_string(k));
+      EXPECT_EQ(p.removed[k].code, q.removed[k].code) << what;
+    }
+    EXPECT_EQ(p.missed_after, q.missed_after) << what << " sequence " << s;
+    EXPECT_EQ(p.irregular_after, q.irregular_after) << what << " sequence " << s;
+    EXPECT_EQ(p.end_reason, q.end_reason) << what << " sequence " << s;
+  }
+  EXPECT_EQ(a.main_sequence, b.main_sequence) << what;
+  ASSERT_EQ(a.warnings.size(), b.warnings.size()) << what;
+  for (std::size_t w = 0; w < a.warnings.size(); ++w) {
+    EXPECT_EQ(a.warnings[w].code, b.warnings[w].code) << what;
+    EXPECT_EQ(a.warnings[w].message, b.warnings[w].message) << what;
+  }
+}
+
+// Threads (DetectOptions::threads) change nothing, to the bit: blocks detected concurrently and
+// merged in order give the serial result (6 drops 7 s apart, about 45 s, in blocks of at most
+// 12 s), and so do a single block's stages split among threads (the same file as one block), and
+// the three candidate signals (two channels and the mix) of a real stereo recording.
+TEST(DetectBlocks, ResultIsTheSameForAnyThreadCount) {
+  ScratchDir dir("bc_blocks");
+  std::vector<std::vector<TruthImpact>> truth;
+  const std::string wav = ManyDrops(dir, 6, 7.0, 17, &truth);
+  for (const double block_s : {12.0, 120.0}) {
+    DetectOptions o;
+    o.max_block_s = block_s;
+    o.threads = 1;
+    const DetectionResult serial = DetectImpactsInFile(wav, o);
+    ASSERT_GE(serial.sequences.size(), 5u);
+    for (const int threads : {2, 3, 0}) {
+      o.threads = threads;
+      ExpectSameDetection(
+          serial, DetectImpactsInFile(wav, o),
+          "blocks of " + std::to_string(block_s) + " s, " + std::to_string(threads) + " threads:");
+    }
+  }
+  const std::string stereo = kRecordings + "pfe_bouncyball_h0.9m_stereo48k.wav";
+  if (!std::filesystem::exists(stereo)) {
+    const char* ci = std::getenv("CI");
+    ASSERT_FALSE(ci != nullptr && std::string(ci) == "true") << "CI=true but no " << stereo;
+    GTEST_SKIP() << stereo << " missing";
+  }
+  DetectOptions o;
+  o.threads = 1;
+  const DetectionResult serial = DetectImpactsInFile(stereo, o);
+  o.threads = 2;
+  ExpectSameDetection(serial, DetectImpactsInFile(stereo, o), "stereo, 2 threads:");
+  std::string why;
+  o.threads = -1;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("DetectOptions::threads"), std::string::npos) << why;
+}
+
 // A sequence that runs across a block's cut is reported (block_split), not silently split: a
 // single 7-second drop in blocks of at most 4 s has no quiet moment to cut at.
 TEST(DetectBlocks, ASequenceCutByABlockIsAWarning) {

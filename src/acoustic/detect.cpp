@@ -6,14 +6,18 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <deque>
+#include <future>
 #include <limits>
 #include <map>
+#include <optional>
 
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/acoustic/plausibility.hpp"
 #include "bouncecal/acoustic/sequence.hpp"
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/parallel.hpp"
 
 namespace bouncecal {
 namespace {
@@ -246,6 +250,7 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   oo.hop_s = options.hop_s;
   oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
   oo.lpc_order = options.lpc_order;
+  oo.threads = options.threads;
   const OnsetDetector detector(oo, rate_hz);
   const OnsetResult onsets = detector.Detect(x);
   out.hop_samples = detector.hop_samples();
@@ -272,18 +277,51 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   // a superball impact timed 0.66 ms early kept sigma 7.8 us instead of 494 us).
   // `detected` maps each timed time (exact value) to the detector time it came from.
   std::map<double, double> detected;
-  auto time_from_anchors = [&](Sequence* q) {
-    std::vector<double> anchor_s(q->impacts.size());
-    for (std::size_t k = 0; k < q->impacts.size(); ++k) {
-      const auto it = detected.find(q->impacts[k].time_s);
-      anchor_s[k] = it != detected.end() ? it->second : q->impacts[k].time_s;
-      q->impacts[k].time_s = anchor_s[k];
+  auto anchors_of = [&](const Sequence& q) {
+    std::vector<double> anchor_s(q.impacts.size());
+    for (std::size_t k = 0; k < q.impacts.size(); ++k) {
+      const auto it = detected.find(q.impacts[k].time_s);
+      anchor_s[k] = it != detected.end() ? it->second : q.impacts[k].time_s;
     }
-    TimeSequence(x, rate_hz, q, tim);
-    for (std::size_t k = 0; k < q->impacts.size(); ++k)
-      detected[q->impacts[k].time_s] = anchor_s[k];
+    return anchor_s;
   };
-  for (Sequence& q : out.sequences) time_from_anchors(&q);
+  auto time_at = [&](const std::vector<double>& anchor_s, int n_threads, Sequence* q) {
+    for (std::size_t k = 0; k < q->impacts.size(); ++k) q->impacts[k].time_s = anchor_s[k];
+    TimingOptions t = tim;
+    t.threads = n_threads;
+    TimeSequence(x, rate_hz, q, t);
+  };
+  // The sequences `which` are timed on the threads (one sequence alone: its members). Each reads
+  // `detected` as it was before the round; one whose anchors a sequence before it in the round
+  // changed (a detector time equal to another's timed time: never seen) is timed again here,
+  // so the result is the serial one.
+  const int threads = ResolveThreads(options.threads);
+  auto time_from_anchors = [&](const std::vector<Sequence*>& which) {
+    std::vector<std::vector<double>> anchors(which.size());
+    std::vector<Sequence> timed(which.size());
+    for (std::size_t i = 0; i < which.size(); ++i) anchors[i] = anchors_of(*which[i]);
+    const int inner = which.size() == 1 ? threads : 1;
+    ParallelFor(threads, which.size(), [&](std::size_t i) {
+      timed[i] = *which[i];
+      time_at(anchors[i], inner, &timed[i]);
+    });
+    for (std::size_t i = 0; i < which.size(); ++i) {
+      std::vector<double> now = anchors_of(*which[i]);
+      if (now != anchors[i]) {
+        timed[i] = *which[i];
+        time_at(now, threads, &timed[i]);
+        anchors[i] = std::move(now);
+      }
+      *which[i] = std::move(timed[i]);
+      for (std::size_t k = 0; k < which[i]->impacts.size(); ++k)
+        detected[which[i]->impacts[k].time_s] = anchors[i][k];
+    }
+  };
+  {
+    std::vector<Sequence*> all;
+    for (Sequence& q : out.sequences) all.push_back(&q);
+    time_from_anchors(all);
+  }
   PlausibilityOptions po;
   po.min_snr_db = options.min_snr_db;
   po.min_sequence_impacts = options.min_sequence_impacts;
@@ -301,8 +339,10 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
     const std::vector<Warning> w = EnforcePlausibility(&out.sequences, po);
     out.warnings.insert(out.warnings.end(), w.begin(), w.end());
     if (w.empty()) break;
+    std::vector<Sequence*> lost;
     for (Sequence& q : out.sequences)
-      if (q.removed.size() != removed_before[key(q)]) time_from_anchors(&q);
+      if (q.removed.size() != removed_before[key(q)]) lost.push_back(&q);
+    time_from_anchors(lost);
   }
   if (out.sequences.empty()) {
     std::string why = std::to_string(out.candidates.size()) + " onset candidates; ";
@@ -459,6 +499,9 @@ bool DetectOptions::IsValid(std::string* error) const {
   if (!(max_block_s >= 4.0) || !std::isfinite(max_block_s))
     return fail("DetectOptions::max_block_s = " + Fmt("%g", max_block_s) +
                 ": must be a finite time >= 4 s");
+  if (threads < 0 || threads > 256)
+    return fail("DetectOptions::threads = " + std::to_string(threads) +
+                ": must be 0 (automatic) to 256");
   if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
     return fail("DetectOptions::min_snr_db = " + Fmt("%g", min_snr_db) +
                 ": must be in [-120, 120] dB");
@@ -559,9 +602,74 @@ void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, bool last_b
   }
 }
 
+// One block of the recording as read and cut, handed to a detection worker.
+struct Block {
+  std::vector<std::vector<float>> channels;  // its frames, every channel
+  std::int64_t start = 0;                    // its first frame in the file
+  double own_lo_s = 0.0, own_hi_s = 0.0;     // the sequences that start in here are its own
+  bool last = false;
+};
+
+// What one block yields for each candidate signal: its peak and, when it is not silent there,
+// what DetectInSignal found (times in file seconds).
+struct BlockResult {
+  std::vector<double> peak;
+  std::vector<std::optional<SignalDetection>> found;
+};
+
+// Every candidate signal of one block through DetectInSignal (at most at kMaxAnalysisRateHz).
+BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& choices,
+                        const DetectOptions& options) {
+  BlockResult r;
+  const int factor = DecimationFactor(rate);
+  const double offset_s = static_cast<double>(b.start) / rate;
+  std::vector<float> mix, xd;
+  for (int choice : choices) {
+    // A channel is detected on the block's own samples; the mix is made one signal at a time.
+    const std::vector<float>* x = &mix;
+    if (choice >= 0)
+      x = &b.channels[static_cast<std::size_t>(choice)];
+    else
+      SignalOf(b.channels, choice, 0, b.channels.front().size(), &mix);
+    double peak = 0.0;
+    for (float v : *x) peak = std::max(peak, static_cast<double>(std::fabs(v)));
+    r.peak.push_back(peak);
+    r.found.emplace_back();
+    if (!(peak > kSilencePeak)) continue;
+    SignalDetection d;
+    if (factor > 1) {
+      Decimate(*x, factor, &xd);
+      d = DetectInSignal(xd, rate / factor, offset_s, options);
+      FullRateAmplitudes(*x, rate, &d);
+      d.hop_samples *= factor;  // in samples of the file's rate (CoarsenToHop)
+    } else {
+      d = DetectInSignal(*x, rate, offset_s, options);
+    }
+    ShiftTimes(offset_s, &d);
+    r.found.back() = std::move(d);
+  }
+  return r;
+}
+
+// Adds one block's results to the signals' (in block order: the merged result is the serial one).
+void MergeBlockResult(BlockResult r, double own_lo_s, double own_hi_s, bool last,
+                      std::vector<SignalAcrossBlocks>* signals) {
+  for (std::size_t ci = 0; ci < signals->size(); ++ci) {
+    SignalAcrossBlocks& sig = (*signals)[ci];
+    sig.peak = std::max(sig.peak, r.peak[ci]);
+    if (!r.found[ci]) continue;
+    sig.sound = true;
+    MergeBlock(std::move(*r.found[ci]), own_lo_s, own_hi_s, last, &sig);
+  }
+}
+
 // Reads frames [i0, i1) of the recording block by block and runs every candidate signal on
-// each block (DetectInSignal), merging what each finds (MergeBlock); then reads the rest of the
-// file, so that every sample is checked and the clipping reports are complete.
+// each block (DetectBlock), merging what each finds in block order (MergeBlock); then reads the
+// rest of the file, so that every sample is checked and the clipping reports are complete.
+// A recording of one block is detected on this thread, its stages split among
+// DetectOptions::threads; several blocks are detected concurrently, one per thread (each
+// single-threaded), while this thread reads ahead: at most threads + 1 blocks in memory. The
+// cuts depend only on the audio, and the merge is in order, so the result is the serial one.
 void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
                   const std::vector<int>& choices, const DetectOptions& options,
                   std::vector<SignalAcrossBlocks>* signals) {
@@ -570,13 +678,26 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
       16, std::min(kMaxBlockFrames, static_cast<std::int64_t>(options.max_block_s * rate)));
   const std::int64_t margin = static_cast<std::int64_t>(kBlockMarginS * rate);
   const std::int64_t search = std::min(cap / 4, static_cast<std::int64_t>(kMaxCutSearchS * rate));
+  const int threads = ResolveThreads(options.threads);
+  DetectOptions per_block = options;
+  per_block.threads = 1;
+
+  struct InFlight {
+    double own_lo_s, own_hi_s;
+    bool last;
+    std::future<BlockResult> result;
+  };
+  std::deque<InFlight> in_flight;
+  auto merge_oldest = [&] {
+    InFlight& f = in_flight.front();
+    MergeBlockResult(f.result.get(), f.own_lo_s, f.own_hi_s, f.last, signals);
+    in_flight.pop_front();
+  };
   reader->Skip(i0);
   std::vector<std::vector<float>> buf(static_cast<std::size_t>(reader->info().channels));
-  std::vector<float> x, tail, xd;
-  const int factor = DecimationFactor(rate);
   std::int64_t buf_start = i0;
   double own_lo_s = -std::numeric_limits<double>::infinity();
-  for (;;) {
+  for (bool first = true;; first = false) {
     // Fill the block up to `cap` frames (or the window's end).
     for (;;) {
       const std::int64_t have = static_cast<std::int64_t>(buf.front().size());
@@ -584,61 +705,48 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
       if (want <= 0 || reader->Read(want, &buf) == 0) break;
     }
     const std::int64_t buf_end = buf_start + static_cast<std::int64_t>(buf.front().size());
-    const bool last = buf_end >= i1 || buf_end - buf_start < cap;
+    Block b;
+    b.start = buf_start;
+    b.own_lo_s = own_lo_s;
+    b.last = buf_end >= i1 || buf_end - buf_start < cap;
     std::int64_t cut = buf_end, block_end = buf_end;
-    if (!last) {
+    if (!b.last) {
       const std::size_t lo = static_cast<std::size_t>(buf_end - search - buf_start);
       const std::size_t hi = static_cast<std::size_t>(buf_end - margin - buf_start);
       cut = buf_start + static_cast<std::int64_t>(QuietestCut(buf, lo, hi, rate));
       block_end = std::min(buf_end, cut + margin);
     }
-    const double own_hi_s =
-        last ? std::numeric_limits<double>::infinity() : static_cast<double>(cut) / rate;
-    const std::size_t len = static_cast<std::size_t>(block_end - buf_start);
-    for (std::size_t ci = 0; ci < choices.size(); ++ci) {
-      // One channel, the only signal tried: detect on the block's own samples (its frames after
-      // block_end set aside meanwhile) instead of a copy, 4 bytes per frame less at the peak.
-      const bool in_place = choices.size() == 1 && choices[ci] >= 0;
-      if (in_place) {
-        x.swap(buf[static_cast<std::size_t>(choices[ci])]);
-        tail.assign(x.begin() + static_cast<std::ptrdiff_t>(len), x.end());
-        x.resize(len);
-      } else {
-        SignalOf(buf, choices[ci], 0, len, &x);
-      }
-      double peak = 0.0;
-      for (float v : x) peak = std::max(peak, static_cast<double>(std::fabs(v)));
-      SignalAcrossBlocks& sig = (*signals)[ci];
-      sig.peak = std::max(sig.peak, peak);
-      if (peak > kSilencePeak) {
-        sig.sound = true;
-        const double offset_s = static_cast<double>(buf_start) / rate;
-        SignalDetection d;
-        if (factor > 1) {
-          Decimate(x, factor, &xd);
-          d = DetectInSignal(xd, rate / factor, offset_s, options);
-          FullRateAmplitudes(x, rate, &d);
-          d.hop_samples *= factor;  // in samples of the file's rate (CoarsenToHop)
-        } else {
-          d = DetectInSignal(x, rate, offset_s, options);
-        }
-        ShiftTimes(offset_s, &d);
-        MergeBlock(std::move(d), own_lo_s, own_hi_s, last, &sig);
-      }
-      if (in_place) {
-        x.insert(x.end(), tail.begin(), tail.end());
-        x.swap(buf[static_cast<std::size_t>(choices[ci])]);
-      }
+    b.own_hi_s = b.last ? std::numeric_limits<double>::infinity() : static_cast<double>(cut) / rate;
+    // The block takes frames [buf_start, block_end); the next starts kBlockMarginS before the cut.
+    const std::int64_t next = b.last ? buf_end : std::max(buf_start, cut - margin);
+    for (std::vector<float>& c : buf) {
+      std::vector<float> rest(c.begin() + static_cast<std::ptrdiff_t>(next - buf_start), c.end());
+      c.resize(static_cast<std::size_t>(block_end - buf_start));
+      b.channels.push_back(std::move(c));
+      c = std::move(rest);
+    }
+    buf_start = next;
+    own_lo_s = b.own_hi_s;
+    if (first && b.last) {  // one block: on this thread, with all the threads for its stages
+      MergeBlockResult(DetectBlock(b, rate, choices, options), b.own_lo_s, b.own_hi_s, true,
+                       signals);
+      break;
+    }
+    const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
+    const bool last = b.last;
+    if (threads > 1) {
+      in_flight.push_back(
+          {lo_s, hi_s, last, std::async(std::launch::async, [&, blk = std::move(b)] {
+             return DetectBlock(blk, rate, choices, per_block);
+           })});
+      while (static_cast<int>(in_flight.size()) >= threads) merge_oldest();
+    } else {
+      MergeBlockResult(DetectBlock(b, rate, choices, per_block), lo_s, hi_s, last, signals);
     }
     if (last) break;
-    // The next block starts kBlockMarginS before the cut.
-    own_lo_s = static_cast<double>(cut) / rate;
-    const std::int64_t next = std::max(buf_start, cut - margin);
-    for (std::vector<float>& c : buf)
-      c.erase(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(next - buf_start));
-    buf_start = next;
   }
   reader->Skip(std::numeric_limits<std::int64_t>::max());
+  while (!in_flight.empty()) merge_oldest();
 }
 
 }  // namespace

@@ -7,11 +7,14 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <memory>
 #include <mutex>
+#include <new>
 #include <numbers>
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/parallel.hpp"
 
 namespace bouncecal {
 namespace {
@@ -57,6 +60,45 @@ struct FloatBuffer {
   float& operator[](std::size_t i) { return data[i]; }
 };
 
+// Blocks of the whitening's autocorrelation and filter per task on a thread (64 x 4096 samples:
+// ~90 tasks per 2-minute block at 48 kHz, each long enough to outweigh its scheduling).
+constexpr std::size_t kWhitenGroup = 64;
+
+// Input and output arrays of one real FFT of `n` points, allocated like the ones its plan was made
+// with (fftw_malloc: the same alignment), so that one plan serves any number of threads at once
+// (fftw_execute_dft_r2c/c2r on new arrays is thread-safe).
+struct FftArrays {
+  double* real = nullptr;
+  fftw_complex* spec = nullptr;
+  explicit FftArrays(std::size_t n) {
+    real = static_cast<double*>(fftw_malloc(sizeof(double) * n));
+    spec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * (n / 2 + 1)));
+    if (!real || !spec) {
+      fftw_free(real);
+      fftw_free(spec);
+      throw std::bad_alloc();
+    }
+  }
+  ~FftArrays() {
+    fftw_free(real);
+    fftw_free(spec);
+  }
+  FftArrays(const FftArrays&) = delete;
+  FftArrays& operator=(const FftArrays&) = delete;
+};
+
+// The novelty's power spectra are computed kSpectraChunk frames at a time, kSpectraPart frames
+// per task on a thread; the reference then slides over the chunk in frame order.
+constexpr std::size_t kSpectraChunk = 4096;
+constexpr std::size_t kSpectraPart = 1024;
+// Overlap-save blocks of the template correlation per task.
+constexpr std::size_t kCorrelatePart = 64;
+// Running-energy restarts (samples) of the template energy, and how many per task.
+constexpr std::size_t kEnergyRestart = 8192;
+constexpr std::size_t kEnergyPart = 32;
+// Threshold blocks (their medians) per task.
+constexpr std::size_t kThresholdPart = 256;
+
 // Frames averaged into the novelty's reference spectrum (~3 ms at the default hop).
 constexpr std::size_t kRefFrames = 8;
 
@@ -84,6 +126,8 @@ bool OnsetOptions::IsValid(std::string* error) const {
   if (!(aic_pre_s > 0.0) || !(aic_post_s > 0.0))
     return fail("OnsetOptions::aic_pre_s and aic_post_s must be > 0");
   if (!(sigma_floor_s >= 0.0)) return fail("OnsetOptions::sigma_floor_s must be >= 0");
+  if (threads < 0 || threads > 256)
+    return fail("OnsetOptions::threads = " + std::to_string(threads) + ": must be 0..256");
   if (aic_upsample < 1 || aic_upsample > 64)
     return fail("OnsetOptions::aic_upsample = " + std::to_string(aic_upsample) + ": must be 1..64");
   if (!(template_s >= 1e-4) || template_s > 0.02)
@@ -114,7 +158,54 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order) {
   return a;
 }
 
-std::vector<float> Whiten(const std::vector<float>& x, int order) {
+namespace {
+
+// The hot loops of Whiten, compiled twice (GCC/Clang function multiversioning, chosen once at
+// load time by the CPU): for AVX2 and for the baseline x86-64. AVX2 without FMA does the same
+// float multiplications and additions lane by lane in the same order, only 8 lanes per
+// instruction instead of 4, so both give the same values to the bit (no contraction into fused
+// multiply-adds: FMA is not enabled by this target).
+#if defined(__x86_64__) && defined(__GNUC__)
+#define BOUNCECAL_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define BOUNCECAL_AVX2_CLONES
+#endif
+
+// r_l over one block [s, e) of x for l in [0, lags): eight independent float partial sums (a
+// block's products are well inside float precision), then summed in double (see Whiten).
+// Lags whose products all lie before the block are left as they are.
+BOUNCECAL_AVX2_CLONES
+void BlockAutocorrelation(const float* x, std::size_t s, std::size_t e, std::size_t lags,
+                          double* out) {
+  for (std::size_t l = 0; l < lags; ++l) {
+    const std::size_t i0 = std::max(s, l);
+    if (i0 >= e) continue;
+    const float* __restrict a = x + i0;
+    const float* __restrict b = x + i0 - l;
+    const std::size_t m = e - i0, m8 = m & ~std::size_t{7};
+    float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (std::size_t k = 0; k < m8; k += 8)
+      for (std::size_t q = 0; q < 8; ++q) acc[q] += a[k + q] * b[k + q];
+    double total = 0.0;
+    for (std::size_t k = m8; k < m; ++k) total += static_cast<double>(a[k]) * b[k];
+    for (float v : acc) total += v;
+    out[l] = total;
+  }
+}
+
+// o[i] += sum_{j >= 1} af[j] x[i - j] for i in [b0, b1) (o holds x there): one pass per tap.
+BOUNCECAL_AVX2_CLONES
+void PredictionErrorBlock(const float* x, const float* af, std::size_t taps, std::size_t b0,
+                          std::size_t b1, float* o) {
+  for (std::size_t j = 1; j < taps; ++j) {
+    const float aj = af[j];
+    for (std::size_t i = std::max(b0, j); i < b1; ++i) o[i] += aj * x[i - j];
+  }
+}
+
+}  // namespace
+
+std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   const std::size_t n = x.size();
   if (order <= 0 || n <= static_cast<std::size_t>(order) * 4) return x;
   // Autocorrelation of the whole signal, r[l] = sum_i x[i] x[i - l]. All of it, so that the
@@ -129,45 +220,41 @@ std::vector<float> Whiten(const std::vector<float>& x, int order) {
   // 5.76 M samples (2 minutes at 48 kHz). The summation order matters: sixteen sums over
   // 1024-sample blocks, as fast, moved the fragile harsh-cut rubber-ball case of the start
   // invariance test (tests/recordings_test.cpp) from 3 members assigned differently to 8.
+  // The blocks' partial sums are independent: they are computed on `threads` threads (groups of
+  // kWhitenGroup blocks each) and added into r in block order, the same sums to the bit.
   const std::size_t block = 4096;
-  std::vector<double> r(static_cast<std::size_t>(order) + 1, 0.0);
-  for (std::size_t s = 0; s < n; s += block) {
-    const std::size_t e = std::min(n, s + block);
-    for (std::size_t l = 0; l <= static_cast<std::size_t>(order); ++l) {
-      const std::size_t i0 = std::max(s, l);
-      if (i0 >= e) continue;
-      const float* __restrict a = x.data() + i0;
-      const float* __restrict b = x.data() + i0 - l;
-      const std::size_t m = e - i0, m8 = m & ~std::size_t{7};
-      float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-      for (std::size_t k = 0; k < m8; k += 8)
-        for (std::size_t q = 0; q < 8; ++q) acc[q] += a[k + q] * b[k + q];
-      double total = 0.0;
-      for (std::size_t k = m8; k < m; ++k) total += static_cast<double>(a[k]) * b[k];
-      for (float v : acc) total += v;
-      r[l] += total;
-    }
-  }
+  const std::size_t lags = static_cast<std::size_t>(order) + 1;
+  const std::size_t nblocks = (n + block - 1) / block;
+  std::vector<double> partial(nblocks * lags, 0.0);
+  auto autocorrelate = [&](std::size_t g) {
+    for (std::size_t bi = g * kWhitenGroup; bi < std::min(nblocks, (g + 1) * kWhitenGroup); ++bi)
+      BlockAutocorrelation(x.data(), bi * block, std::min(n, bi * block + block), lags,
+                           partial.data() + bi * lags);
+  };
+  const std::size_t groups = (nblocks + kWhitenGroup - 1) / kWhitenGroup;
+  ParallelFor(threads, groups, autocorrelate);
+  std::vector<double> r(lags, 0.0);
+  for (std::size_t bi = 0; bi < nblocks; ++bi)
+    for (std::size_t l = 0; l < lags; ++l)
+      if (std::max(bi * block, l) < std::min(n, bi * block + block)) r[l] += partial[bi * lags + l];
   if (!(r[0] > 0.0)) return x;
   // A little white-noise floor (-60 dB) keeps the predictor stable on pure tones
   // (lag-window / "white noise correction", Makhoul 1975 sec. III-D).
   r[0] *= 1.0 + 1e-6;
   const std::vector<double> a = LevinsonDurbin(r, order);
-  // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block).
+  // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block);
+  // every output block depends on x only, so groups of blocks run on the threads.
   std::vector<float> out(x);
   std::vector<float> af(a.size());
   for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
   const std::size_t blk = 2048;
-  for (std::size_t b0 = 0; b0 < n; b0 += blk) {
-    const std::size_t b1 = std::min(n, b0 + blk);
-    for (std::size_t j = 1; j < af.size(); ++j) {
-      const float aj = af[j];
-      const std::size_t start = std::max(b0, j);
-      float* o = out.data();
-      const float* in = x.data() - j;
-      for (std::size_t i = start; i < b1; ++i) o[i] += aj * in[i];
-    }
-  }
+  const std::size_t fblocks = (n + blk - 1) / blk;
+  auto filter = [&](std::size_t g) {
+    for (std::size_t fb = g * kWhitenGroup; fb < std::min(fblocks, (g + 1) * kWhitenGroup); ++fb)
+      PredictionErrorBlock(x.data(), af.data(), af.size(), fb * blk, std::min(n, fb * blk + blk),
+                           out.data());
+  };
+  ParallelFor(threads, (fblocks + kWhitenGroup - 1) / kWhitenGroup, filter);
   return out;
 }
 
@@ -289,56 +376,61 @@ struct OnsetDetector::Fft {
 // Overlap-save FFT correlation of a long signal with a short template (plans made once).
 struct OnsetDetector::Correlator {
   int n = 0;  // FFT size
-  double* buf = nullptr;
-  fftw_complex* spec = nullptr;
-  fftw_complex* tspec = nullptr;
   fftw_plan fwd = nullptr, inv = nullptr;
   explicit Correlator(int size) : n(size) {
     std::lock_guard<std::mutex> lock(PlannerMutex());
-    const std::size_t nb = static_cast<std::size_t>(n / 2 + 1);
-    buf = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
-    spec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * nb));
-    tspec = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * nb));
-    fwd = fftw_plan_dft_r2c_1d(n, buf, spec, FFTW_ESTIMATE);
-    inv = fftw_plan_dft_c2r_1d(n, spec, buf, FFTW_ESTIMATE);
+    // Planned on arrays of the kind Correlate executes them on (FFTW_ESTIMATE does not touch them).
+    FftArrays a(static_cast<std::size_t>(n));
+    fwd = fftw_plan_dft_r2c_1d(n, a.real, a.spec, FFTW_ESTIMATE);
+    inv = fftw_plan_dft_c2r_1d(n, a.spec, a.real, FFTW_ESTIMATE);
   }
   ~Correlator() {
     std::lock_guard<std::mutex> lock(PlannerMutex());
     fftw_destroy_plan(fwd);
     fftw_destroy_plan(inv);
-    fftw_free(buf);
-    fftw_free(spec);
-    fftw_free(tspec);
   }
   Correlator(const Correlator&) = delete;
   Correlator& operator=(const Correlator&) = delete;
 
-  // out[i] = sum_j h[j] x[i + j] for i in [0, x.size()), x zero beyond its end.
-  void Correlate(const std::vector<float>& x, const std::vector<double>& h, FloatBuffer* result) {
+  // out[i] = sum_j h[j] x[i + j] for i in [0, x.size()), x zero beyond its end. The
+  // overlap-save blocks are independent: groups of kCorrelatePart of them run on `threads`.
+  void Correlate(const std::vector<float>& x, const std::vector<double>& h, FloatBuffer* result,
+                 int threads) const {
     const std::size_t nn = static_cast<std::size_t>(n), m = h.size(), nb = nn / 2 + 1;
     assert(m < nn / 2);
-    std::fill(buf, buf + nn, 0.0);
-    for (std::size_t j = 0; j < m; ++j) buf[j] = h[j];
-    fftw_execute_dft_r2c(fwd, buf, tspec);
+    FftArrays tf(nn);
+    std::fill(tf.real, tf.real + nn, 0.0);
+    for (std::size_t j = 0; j < m; ++j) tf.real[j] = h[j];
+    fftw_execute_dft_r2c(fwd, tf.real, tf.spec);
+    const fftw_complex* tspec = tf.spec;
     const std::size_t step = nn - m + 1;  // valid outputs per block
     FloatBuffer& out = *result;
     out.Allocate(x.size());
     const double scale = 1.0 / static_cast<double>(nn);
-    for (std::size_t b = 0; b < x.size(); b += step) {
-      const std::size_t len = std::min(nn, x.size() - b);
-      for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
-      std::fill(buf + len, buf + nn, 0.0);
-      fftw_execute_dft_r2c(fwd, buf, spec);
-      for (std::size_t k = 0; k < nb; ++k) {  // X * conj(H): correlation
-        const double re = spec[k][0] * tspec[k][0] + spec[k][1] * tspec[k][1];
-        const double im = spec[k][1] * tspec[k][0] - spec[k][0] * tspec[k][1];
-        spec[k][0] = re;
-        spec[k][1] = im;
+    const std::size_t blocks = (x.size() + step - 1) / step;
+    auto part = [&](std::size_t p) {
+      FftArrays a(nn);
+      double* buf = a.real;
+      fftw_complex* spec = a.spec;
+      for (std::size_t bi = p * kCorrelatePart; bi < std::min(blocks, (p + 1) * kCorrelatePart);
+           ++bi) {
+        const std::size_t b = bi * step;
+        const std::size_t len = std::min(nn, x.size() - b);
+        for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
+        std::fill(buf + len, buf + nn, 0.0);
+        fftw_execute_dft_r2c(fwd, buf, spec);
+        for (std::size_t k = 0; k < nb; ++k) {  // X * conj(H): correlation
+          const double re = spec[k][0] * tspec[k][0] + spec[k][1] * tspec[k][1];
+          const double im = spec[k][1] * tspec[k][0] - spec[k][0] * tspec[k][1];
+          spec[k][0] = re;
+          spec[k][1] = im;
+        }
+        fftw_execute_dft_c2r(inv, spec, buf);
+        const std::size_t valid = std::min(step, x.size() - b);
+        for (std::size_t i = 0; i < valid; ++i) out[b + i] = static_cast<float>(buf[i] * scale);
       }
-      fftw_execute_dft_c2r(inv, spec, buf);
-      const std::size_t valid = std::min(step, x.size() - b);
-      for (std::size_t i = 0; i < valid; ++i) out[b + i] = static_cast<float>(buf[i] * scale);
-    }
+    };
+    ParallelFor(threads, (blocks + kCorrelatePart - 1) / kCorrelatePart, part);
   }
 };
 
@@ -381,7 +473,7 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   res.window_samples = window_;
   res.rate_hz = rate_hz_;
   res.sigma_floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
-  res.whitened = Whiten(x, options_.lpc_order);
+  res.whitened = Whiten(x, options_.lpc_order, ResolveThreads(options_.threads));
   res.noise_rms = RobustRms(res.whitened);
   const std::size_t n = res.whitened.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
@@ -422,16 +514,36 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
   const std::size_t ring = lag + kRefFrames;
   std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num(frames, 0.0), den(frames, 0.0);
-  Fft& f = *fft_;
+  const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
+  const int threads = ResolveThreads(options_.threads);
+  // Power spectra of frames [c0, c0 + kSpectraChunk), parts of them on the threads.
+  std::vector<double> power(std::min(frames, kSpectraChunk) * bins);
+  std::size_t c0 = 0;
+  auto spectra_part = [&](std::size_t part) {
+    FftArrays a(nw);
+    const std::size_t t0 = c0 + part * kSpectraPart;
+    const std::size_t t1 = std::min({frames, c0 + kSpectraChunk, t0 + kSpectraPart});
+    for (std::size_t t = t0; t < t1; ++t) {
+      const float* src = w.data() + t * hop;
+      for (std::size_t i = 0; i < nw; ++i) a.real[i] = src[i] * f.window[i];
+      fftw_execute_dft_r2c(f.plan, a.real, a.spec);
+      double* p = power.data() + (t - c0) * bins;
+      for (std::size_t k = 0; k < bins; ++k)
+        p[k] = a.spec[k][0] * a.spec[k][0] + a.spec[k][1] * a.spec[k][1];
+    }
+  };
   for (std::size_t t = 0; t < frames; ++t) {
-    const float* src = w.data() + t * hop;
-    for (std::size_t i = 0; i < nw; ++i) f.in[i] = src[i] * f.window[i];
-    fftw_execute(f.plan);
+    if (t % kSpectraChunk == 0) {
+      c0 = t;
+      const std::size_t in_chunk = std::min(frames - c0, kSpectraChunk);
+      ParallelFor(threads, (in_chunk + kSpectraPart - 1) / kSpectraPart, spectra_part);
+    }
+    const double* pw = power.data() + (t - c0) * bins;
     double* cur = spectra.data() + (t % ring) * bins;
     double up = 0.0, ref_total = 0.0;
     for (std::size_t k = 0; k < bins; ++k) {
-      const double p = f.out[k][0] * f.out[k][0] + f.out[k][1] * f.out[k][1];
+      const double p = pw[k];
       const double r = ref[k] * inv_ref;
       up += std::max(p - r, 0.0);  // branch-free half-wave rectification
       ref_total += r;
@@ -473,6 +585,25 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   return novelty;
 }
 
+// The threshold at frame c: median + max(threshold_mads MAD, min_novelty_db) of the novelty
+// over the `win` frames around c (every fourth frame).
+double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t c, std::size_t win,
+                                     std::vector<double>* buf_) const {
+  std::vector<double>& buf = *buf_;
+  const std::size_t frames = nov.size();
+
+  const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
+  const std::size_t hi = std::min(frames, lo + win);
+  // Every fourth frame of the window (~225 values at the default hop): the median and MAD of
+  // the background are as good and a quarter of the work.
+  buf.clear();
+  for (std::size_t q = lo; q < hi; q += 4) buf.push_back(nov[q]);
+  const double med = Median(buf);
+  for (double& v : buf) v = std::fabs(v - med);
+  const double mad = 1.4826 * Median(buf);
+  return med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
+}
+
 std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) const {
   // Running median + k * MAD, evaluated on blocks and interpolated.
   const std::size_t frames = nov.size();
@@ -482,20 +613,13 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
   const std::size_t blk = std::max<std::size_t>(1, win / 8);
   const std::size_t nblk = (frames + blk - 1) / blk;
   std::vector<double> blk_thr(nblk);
-  std::vector<double> buf;
-  for (std::size_t b = 0; b < nblk; ++b) {
-    const std::size_t c = b * blk + blk / 2;
-    const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
-    const std::size_t hi = std::min(frames, lo + win);
-    // Every fourth frame of the window (~225 values at the default hop): the median and MAD of
-    // the background are as good and a quarter of the work.
-    buf.clear();
-    for (std::size_t q = lo; q < hi; q += 4) buf.push_back(nov[q]);
-    const double med = Median(buf);
-    for (double& v : buf) v = std::fabs(v - med);
-    const double mad = 1.4826 * Median(buf);
-    blk_thr[b] = med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
-  }
+  // Each block's median and MAD are independent: groups of kThresholdPart blocks per thread task.
+  auto part = [&](std::size_t g) {
+    std::vector<double> buf;
+    for (std::size_t b = g * kThresholdPart; b < std::min(nblk, (g + 1) * kThresholdPart); ++b)
+      blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &buf);
+  };
+  ParallelFor(ResolveThreads(options_.threads), (nblk + kThresholdPart - 1) / kThresholdPart, part);
   std::vector<double> thr(frames);
   for (std::size_t t = 0; t < frames; ++t) {
     const double pos =
@@ -597,6 +721,56 @@ struct OnsetDetector::TemplateMatch {
   }
 };
 
+namespace {
+
+// ww[i] = sum of w^2 over [i, min(n, i + tl)) for i in [b, e): exact at b, then running.
+void RunningEnergy(const std::vector<float>& w, std::size_t tl, std::size_t b, std::size_t e,
+                   FloatBuffer* ww_out) {
+  const std::size_t n = w.size();
+  FloatBuffer& ww = *ww_out;
+  {
+    double run = 0.0;
+    for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
+    ww[b] = static_cast<float>(run);
+    const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
+    std::size_t i = b + 1;
+    for (; i < e_in; ++i) {
+      const double in_v = w[i + tl - 1], out_v = w[i - 1];
+      run += in_v * in_v - out_v * out_v;
+      ww[i] = static_cast<float>(std::max(run, 0.0));
+    }
+    for (; i < e; ++i) {
+      const double out_v = w[i - 1];
+      run -= out_v * out_v;
+      ww[i] = static_cast<float>(std::max(run, 0.0));
+    }
+  }
+}
+
+// RunningEnergy on the four whole stretches starting at b, b + kEnergyRestart, ... (all of
+// w[i + tl - 1] inside w): the same operations per stretch, interleaved, so that the four
+// running sums' additions overlap (one sum alone is a chain of dependent additions).
+void RunningEnergy4(const std::vector<float>& w, std::size_t tl, std::size_t b,
+                    FloatBuffer* ww_out) {
+  FloatBuffer& ww = *ww_out;
+  double run[4];
+  for (std::size_t q = 0; q < 4; ++q) {
+    const std::size_t bq = b + q * kEnergyRestart;
+    run[q] = 0.0;
+    for (std::size_t j = bq; j < bq + tl; ++j) run[q] += static_cast<double>(w[j]) * w[j];
+    ww[bq] = static_cast<float>(run[q]);
+  }
+  for (std::size_t i = 1; i < kEnergyRestart; ++i)
+    for (std::size_t q = 0; q < 4; ++q) {
+      const std::size_t at = b + q * kEnergyRestart + i;
+      const double in_v = w[at + tl - 1], out_v = w[at - 1];
+      run[q] += in_v * in_v - out_v * out_v;
+      ww[at] = static_cast<float>(std::max(run[q], 0.0));
+    }
+}
+
+}  // namespace
+
 bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
   const std::vector<float>& w = res->whitened;
   const std::size_t n = w.size();
@@ -617,29 +791,25 @@ bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
   res->template_start = m->ref_start;
   res->template_onset_s = res->onsets[strongest].time_s;
   m->t_ref = res->onsets[strongest].time_s;
-  corr_->Correlate(w, h, &m->xc);
+  corr_->Correlate(w, h, &m->xc, ResolveThreads(options_.threads));
   // Energy of w under the template at each start: ww[i] = sum of w^2 over [i, min(n, i + tl)),
   // a running sum (float storage: half the memory of double prefix sums, which dominated the
   // allocation cost), recomputed exactly every 8192 samples so rounding cannot accumulate.
+  // The restarts make the stretches independent: groups of kEnergyPart of them on the threads.
   m->ww.Allocate(n);
-  for (std::size_t b = 0; b < n; b += 8192) {
-    double run = 0.0;
-    for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
-    m->ww[b] = static_cast<float>(run);
-    const std::size_t e = std::min(n, b + 8192);
-    const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
-    std::size_t i = b + 1;
-    for (; i < e_in; ++i) {
-      const double in_v = w[i + tl - 1], out_v = w[i - 1];
-      run += in_v * in_v - out_v * out_v;
-      m->ww[i] = static_cast<float>(std::max(run, 0.0));
-    }
-    for (; i < e; ++i) {
-      const double out_v = w[i - 1];
-      run -= out_v * out_v;
-      m->ww[i] = static_cast<float>(std::max(run, 0.0));
-    }
-  }
+  const std::size_t stretches = (n + kEnergyRestart - 1) / kEnergyRestart;
+  auto energy_part = [&](std::size_t part) {
+    const std::size_t s1 = std::min(stretches, (part + 1) * kEnergyPart);
+    std::size_t b = part * kEnergyPart * kEnergyRestart;
+    // Four whole stretches at a time where they fit, then one by one.
+    for (; b + 4 * kEnergyRestart <= s1 * kEnergyRestart && b + 4 * kEnergyRestart + tl <= n + 1;
+         b += 4 * kEnergyRestart)
+      RunningEnergy4(w, tl, b, &m->ww);
+    for (; b < s1 * kEnergyRestart; b += kEnergyRestart)
+      RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), &m->ww);
+  };
+  ParallelFor(ResolveThreads(options_.threads), (stretches + kEnergyPart - 1) / kEnergyPart,
+              energy_part);
   return true;
 }
 

@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/parallel.hpp"
 
 namespace bouncecal {
 namespace {
@@ -38,10 +40,39 @@ double WindowedSinc(double d) {
   return s * (0.5 + 0.5 * std::cos(std::numbers::pi * d / static_cast<double>(kSincHalf)));
 }
 
+// WindowedSinc at every multiple of 1/kPeakGrid in (-kSincHalf, kSincHalf), computed once with
+// the same formula: InterpolatedPeak's fine-grid points t (an integer plus j / kPeakGrid) and
+// sample indices m give arguments d = t - m that are such multiples exactly, so looking them up
+// gives the same values to the bit as evaluating the sin and cos there (which were ~9 % of a
+// `calibrate` of the bundled recording). Immutable after its thread-safe initialisation.
+constexpr double kSincGridMaxT = 1 << 20;  // |t| below it: t * kPeakGrid is exact
+class SincGrid {
+ public:
+  static const SincGrid& Get() {
+    static const SincGrid grid;
+    return grid;
+  }
+  // d must be a multiple of 1 / kPeakGrid.
+  double At(double d) const {
+    const long k = std::lround(d * kPeakGrid);
+    if (k <= -kSpan || k >= kSpan) return 0.0;
+    return values_[static_cast<std::size_t>(k + kSpan)];
+  }
+
+ private:
+  static constexpr long kSpan = kSincHalf * kPeakGrid;
+  SincGrid() : values_(static_cast<std::size_t>(2 * kSpan + 1)) {
+    for (long k = -kSpan; k <= kSpan; ++k)
+      values_[static_cast<std::size_t>(k + kSpan)] =
+          WindowedSinc(static_cast<double>(k) / kPeakGrid);
+  }
+  std::vector<double> values_;
+};
+
 // sum_k a[k] b[k] in double, with four independent partial sums: the compiler may not reorder
 // a floating-point sum itself, and a single running sum is one dependent add per product.
 template <typename A, typename B>
-double Dot(const A* a, const B* b, std::size_t n) {
+[[gnu::always_inline]] inline double DotBody(const A* a, const B* b, std::size_t n) {
   double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
   std::size_t k = 0;
   for (; k + 4 <= n; k += 4) {
@@ -52,6 +83,21 @@ double Dot(const A* a, const B* b, std::size_t n) {
   }
   for (; k < n; ++k) s0 += static_cast<double>(a[k]) * static_cast<double>(b[k]);
   return (s0 + s1) + (s2 + s3);
+}
+
+// Dot compiled for AVX2 and for the baseline x86-64 (function multiversioning, chosen at load
+// time): AVX2 without FMA adds the same products in the same four partial sums (one 4-lane
+// register instead of two 2-lane ones), so both give the same value to the bit.
+#if defined(__x86_64__) && defined(__GNUC__)
+#define BOUNCECAL_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define BOUNCECAL_AVX2_CLONES
+#endif
+BOUNCECAL_AVX2_CLONES double Dot(const float* a, const float* b, std::size_t n) {
+  return DotBody(a, b, n);
+}
+BOUNCECAL_AVX2_CLONES double Dot(const double* a, const float* b, std::size_t n) {
+  return DotBody(a, b, n);
 }
 
 // Robust rms (Gaussian: 1.4826 * median |x|) of p[0, n).
@@ -218,6 +264,8 @@ bool TimingOptions::IsValid(std::string* error) const {
     if (!(v > 0.0) || !std::isfinite(v) || v > 1.0)
       return fail(std::string("TimingOptions::") + name + " = " + std::to_string(v) +
                   ": must be in (0, 1]");
+  if (threads < 0 || threads > 256)
+    return fail("TimingOptions::threads = " + std::to_string(threads) + ": must be 0..256");
   if (!(min_template_ncc > 0.0) || min_template_ncc > 1.0)
     return fail("TimingOptions::min_template_ncc = " + std::to_string(min_template_ncc) +
                 ": must be in (0, 1]");
@@ -275,11 +323,16 @@ std::vector<float> WhitenSegment(const std::vector<float>& x, const std::vector<
 
 double InterpolatedPeak(const std::vector<double>& c, std::size_t at, double* peak) {
   const long size = static_cast<long>(c.size());
+  const SincGrid& grid = SincGrid::Get();
   auto f = [&](double t) {
     double acc = 0.0;
     const long m0 = static_cast<long>(std::floor(t));
-    for (long m = std::max(0L, m0 - kSincHalf + 1); m <= std::min(size - 1, m0 + kSincHalf); ++m)
-      acc += c[static_cast<std::size_t>(m)] * WindowedSinc(t - static_cast<double>(m));
+    const double steps = t * kPeakGrid;  // exact for the grid points (multiples of 1/kPeakGrid)
+    const bool on_grid = steps == std::floor(steps) && std::fabs(t) < kSincGridMaxT;
+    for (long m = std::max(0L, m0 - kSincHalf + 1); m <= std::min(size - 1, m0 + kSincHalf); ++m) {
+      const double d = t - static_cast<double>(m);
+      acc += c[static_cast<std::size_t>(m)] * (on_grid ? grid.At(d) : WindowedSinc(d));
+    }
     return acc;
   };
   const double centre = static_cast<double>(at);
@@ -612,22 +665,25 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
       NeighbourhoodPredictor(x, anchors, o.lpc_order, std::lround(o.fit_before_s * rate_hz),
                              std::lround(o.fit_after_s * rate_hz));
   // 2. Local whitening around each member.
+  // Stages 2, 3 and 5-6 treat each member on its own (every member writes its own slots), so
+  // the members are shared among TimingOptions::threads.
+  const int threads = ResolveThreads(o.threads);
   std::vector<Neighbourhood> nb(n);
-  for (std::size_t k = 0; k < n; ++k) {
+  ParallelFor(threads, n, [&](std::size_t k) {
     nb[k].begin = anchors[k] - g.before;
     nb[k].w = WhitenSegment(x, res.predictor, anchors[k] - g.before, anchors[k] + g.after);
-  }
+  });
   // 3-4. Template: the earliest member whose local SNR at its detected time is within
   // kTemplateSnrToleranceDb of the best. Not the best itself: members' SNRs lie within
   // a fraction of a dB of each other and move with the predictor, hence with which weak members the
   // sequence has (a different template moved every time of a rubber ball by 55 us); the earliest
   // within the tolerance stays the same member unless the SNRs move by that much.
   std::vector<double> snr(n);
-  double best_snr = -1e300;
-  for (std::size_t k = 0; k < n; ++k) {
+  ParallelFor(threads, n, [&](std::size_t k) {
     snr[k] = Measure(nb[k], x, static_cast<double>(anchors[k]) - 0.5, rate_hz, o).snr_db;
-    best_snr = std::max(best_snr, snr[k]);
-  }
+  });
+  double best_snr = -1e300;
+  for (std::size_t k = 0; k < n; ++k) best_snr = std::max(best_snr, snr[k]);
   std::size_t tk = 0;
   while (tk + 1 < n && !(snr[tk] >= best_snr - kTemplateSnrToleranceDb)) ++tk;
   res.template_member = static_cast<int>(tk);
@@ -637,7 +693,7 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   const double resolution = std::hypot(o.resolution_samples, o.resolution_s * rate_hz);
   std::vector<double> own_aic(n, NAN), own_spread(n, 0.0);
   std::vector<MemberTime> mts(n);
-  for (std::size_t k = 0; k < n; ++k) {
+  ParallelFor(threads, n, [&](std::size_t k) {
     TimingDetail& d = res.detail[k];
     const AicPick own = AicAround(nb[k], anchors[k], g);
     if (own.valid) {
@@ -657,7 +713,7 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
     im.snr_db = m.snr_db;
     im.amplitude = m.amplitude;
     im.score = std::clamp(d.ncc, 0.0, 1.0);
-  }
+  });
   // Anchor: the template's own AIC pick fixes the sequence's constant offset, but which member
   // is the template can change with the audio around the sequence (SNRs within a fraction of a
   // dB). The median over the members of (own AIC pick - template time) does not: shift every
@@ -679,16 +735,20 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   const std::vector<double> loud_predictor =
       NeighbourhoodPredictor(x, loud_anchors, o.lpc_order, std::lround(o.fit_before_s * rate_hz),
                              std::lround(o.fit_after_s * rate_hz));
-  std::vector<double> shifts;
-  for (const auto& [neg_level, k] : by_level) {
+  std::vector<std::optional<double>> loud_shift(by_level.size());
+  ParallelFor(threads, by_level.size(), [&](std::size_t i) {
+    const std::size_t k = by_level[i].second;
     Neighbourhood loud;
     loud.begin = nb[k].begin;
     loud.w = WhitenSegment(x, loud_predictor, nb[k].begin,
                            nb[k].begin + static_cast<long>(nb[k].w.size()));
     const AicPick p = AicAround(loud, std::lround(imps[k].time_s * rate_hz), g);
     if (p.valid)
-      shifts.push_back(p.index + static_cast<double>(loud.begin) - imps[k].time_s * rate_hz);
-  }
+      loud_shift[i] = p.index + static_cast<double>(loud.begin) - imps[k].time_s * rate_hz;
+  });
+  std::vector<double> shifts;
+  for (const std::optional<double>& s : loud_shift)
+    if (s) shifts.push_back(*s);
   if (!shifts.empty()) {
     // Trimmed mean (the middle half): on a soft ball the picks spread over ~20 samples with
     // gaps, and the median jumped by 5 samples when one pick moved; the mean of the middle half

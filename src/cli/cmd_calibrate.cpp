@@ -107,16 +107,20 @@ std::vector<CalibrationInput> DetectAll(const std::vector<std::pair<std::string,
   std::vector<std::vector<CalibrationInput>> per(in.size());
   std::vector<std::optional<Error>> errors(in.size());
   std::atomic<size_t> next{0};
+  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(in.size())));
+  // Several workers: one thread each for detection (DetectOptions::threads), not one per core
+  // each on top of the workers.
+  DetectFlags per_worker = flags;
+  if (n > 1) per_worker.threads = 1;
   auto worker = [&]() {
     for (size_t i = next++; i < in.size(); i = next++) {
       try {
-        per[i] = Detect(in[i], flags);
+        per[i] = Detect(in[i], per_worker);
       } catch (...) {
         errors[i] = CurrentError(in[i].first);
       }
     }
   };
-  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(in.size())));
   std::vector<std::thread> pool;
   for (int t = 1; t < n; ++t) pool.emplace_back(worker);
   worker();
@@ -200,12 +204,16 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     }
   };
   std::atomic<size_t> next{0};
+  const int nthreads = std::max(1, std::min<int>(a.jobs, static_cast<int>(n)));
+  // One detection thread per worker (DetectOptions::threads) when several workers run.
+  DetectFlags per_worker = a.detect;
+  if (nthreads > 1) per_worker.threads = 1;
   auto worker = [&]() {
     for (size_t i = next++; i < n; i = next++) {
       std::optional<Calibration> fit;
       std::optional<Error> err;
       try {
-        fit = Calibrate(Detect(inputs[i], a.detect), scene, opts);
+        fit = Calibrate(Detect(inputs[i], per_worker), scene, opts);
       } catch (...) {
         err = CurrentError(names[i]);
       }
@@ -230,7 +238,6 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
       }
     }
   };
-  const int nthreads = std::max(1, std::min<int>(a.jobs, static_cast<int>(n)));
   std::vector<std::thread> pool;
   for (int t = 1; t < nthreads; ++t) pool.emplace_back(worker);
   worker();

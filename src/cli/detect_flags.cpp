@@ -33,6 +33,10 @@ void AddDetectFlags(CLI::App* sub, DetectFlags* f) {
   sub->add_option("--impacts", f->impacts,
                   "impact times from FILE instead of detection (detect --json output, CSV with a "
                   "time_s column, Audacity labels, or one time per line); one per recording");
+  sub->add_option("--threads", f->threads,
+                  "threads for detection (0 = one per core, at most 8; the result is the same "
+                  "for any count)")
+      ->capture_default_str();
 }
 
 DetectOptions MakeDetectOptions(const DetectFlags& f) {
@@ -55,6 +59,10 @@ DetectOptions MakeDetectOptions(const DetectFlags& f) {
                   "--min-snr-db " + Num(*f.min_snr_db) + ": must be in [-120, 120] dB");
     o.min_snr_db = *f.min_snr_db;
   }
+  if (f.threads < 0 || f.threads > 256)
+    throw Error(ErrorCode::kUsage,
+                "--threads " + std::to_string(f.threads) + ": must be 0 (automatic) to 256");
+  o.threads = f.threads;
   ParseSequenceChoice(f.sequence);  // kUsage naming the text
   std::string why;
   if (!o.IsValid(&why)) throw Error(ErrorCode::kUsage, why);

@@ -31,6 +31,7 @@ struct DetectFlags {
   std::string sequence = "main";
   std::optional<double> min_snr_db;
   std::vector<std::string> impacts;
+  int threads = 1;  // DetectOptions::threads (0: one per core; batch workers set 1)
 };
 
 // Adds --channel --start --end --sequence --min-snr-db --impacts to a subcommand.

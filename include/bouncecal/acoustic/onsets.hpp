@@ -53,6 +53,9 @@ struct OnsetOptions {
   double template_s = 0.0015;         // template length (whitened strongest impact)
   double template_threshold = 0.4;    // NCC above which a template match is a candidate (>= 1: off)
   double template_timing_ncc = 0.4;   // NCC from which the template lag times an onset (>= 1: AIC)
+  // Threads Detect may use (0: hardware concurrency, core/parallel.hpp); the onsets do not depend
+  // on the count. One OnsetDetector may serve several threads' Detect calls at once.
+  int threads = 1;
   bool IsValid(std::string* error) const;
 };
 
@@ -89,8 +92,9 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 
 // Fits the predictor to x (autocorrelation method, over all of x: the fit, hence the whitening,
 // does not depend on where x starts beyond the audio cut off) and returns the prediction error
-// (same length; the first `order` samples use the available past).
-std::vector<float> Whiten(const std::vector<float>& x, int order);
+// (same length; the first `order` samples use the available past). `threads` share the work;
+// the result does not depend on their number.
+std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1);
 
 // Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
 // hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).
@@ -131,6 +135,8 @@ class OnsetDetector {
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
   std::vector<double> Novelty(const std::vector<float>& whitened) const;    // 1. flux, dB
   std::vector<double> Threshold(const std::vector<double>& novelty) const;  // 2. adaptive
+  double BlockThreshold(const std::vector<double>& novelty, std::size_t centre, std::size_t win,
+                        std::vector<double>* scratch) const;
   std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
                                  const std::vector<double>& threshold) const;  // 3. frames
   // 4. AIC refinement and measures at a coarse onset sample.

@@ -108,6 +108,9 @@ struct TimingOptions {
   double resolution_samples = 0.0;
   double resolution_s = 2e-6;
   double aic_sigma_gain = 1.0;
+  // Threads TimeSequence may use (0: hardware concurrency, core/parallel.hpp): its members are
+  // timed independently; the result does not depend on the count.
+  int threads = 1;
   bool IsValid(std::string* error) const;
 };
 

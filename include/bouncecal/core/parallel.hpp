@@ -1,0 +1,28 @@
+// bouncecal/core/parallel.hpp — a fixed set of independent tasks on a few threads.
+//
+// Deterministic by construction: task i writes only its own results (a slot of a vector), so
+// what the tasks compute does not depend on how many threads ran them or in which order.
+//
+//   std::vector<double> out(n);
+//   ParallelFor(ResolveThreads(options.threads), n, [&](std::size_t i) { out[i] = f(i); });
+#pragma once
+
+#include <cstddef>
+#include <functional>
+
+namespace bouncecal {
+
+// Most threads an automatic count (0) resolves to: the stages split into a handful of
+// independent parts, and more threads than that only add start-up cost.
+constexpr int kMaxAutoThreads = 8;
+
+// `requested` >= 1 as it is; 0: std::thread::hardware_concurrency() (1 when unknown), at most
+// kMaxAutoThreads.
+int ResolveThreads(int requested);
+
+// Runs task(i) for every i in [0, n) on up to `threads` threads (the calling one included) and
+// returns when all have finished. If tasks throw, the exception of the lowest such i is
+// rethrown.
+void ParallelFor(int threads, std::size_t n, const std::function<void(std::size_t)>& task);
+
+}  // namespace bouncecal

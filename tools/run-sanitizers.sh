@@ -10,8 +10,9 @@
 #       gives the fuzz targets (tests/fuzz/). Runs every test except the labels `integration`
 #       (the DEM simulators are not ours) and `bench` (timings), including `fuzz_replay_*`
 #       (every input under tests/fuzz/regressions/).
-# tsan  GCC build in build-tsan/ with ThreadSanitizer of the CLI and the three test programs
-#       that run threads (batch --jobs, law comparison); runs those tests.
+# tsan  GCC build in build-tsan/ with ThreadSanitizer of the CLI and the five test programs
+#       that run threads (batch --jobs, law comparison, detection threads, the parallel-for
+#       helper); runs those tests.
 # all   asan, then tsan.
 # ci    what .ci/run runs: asan restricted to the test programs in CI_ASAN_TESTS below, the
 #       fuzz targets for FUZZ_SECONDS each (default 30) from their seeds and regressions, with
@@ -41,7 +42,7 @@ CI_ASAN_TESTS=(
   audio_test blocks_test onsets_test sequence_test detect_test
   kinematics_test calibrate_test calibrate_cli_test hardening_test cli_test
 )
-TSAN_TESTS=(calibrate_cli_test calibrate_test hardening_test)
+TSAN_TESTS=(calibrate_cli_test calibrate_test hardening_test blocks_test parallel_test)
 TSAN_REGEX='Batch|Jobs|LawComparison|CalibrateCompare|Parallel|Thread'
 
 timed() {  # name command...: runs it, prints its wall time like .ci/run's stages

@@ -13,6 +13,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
 
@@ -160,16 +161,8 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order) {
 
 namespace {
 
-// The hot loops of Whiten, compiled twice (GCC/Clang function multiversioning, chosen once at
-// load time by the CPU): for AVX2 and for the baseline x86-64. AVX2 without FMA does the same
-// float multiplications and additions lane by lane in the same order, only 8 lanes per
-// instruction instead of 4, so both give the same values to the bit (no contraction into fused
-// multiply-adds: FMA is not enabled by this target).
-#if defined(__x86_64__) && defined(__GNUC__)
-#define BOUNCECAL_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define BOUNCECAL_AVX2_CLONES
-#endif
+// The hot loops of Whiten, compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the
+// same float multiplications and additions lane by lane, 8 lanes per instruction instead of 4.
 
 // r_l over one block [s, e) of x for l in [0, lags): eight independent float partial sums (a
 // block's products are well inside float precision), then summed in double (see Whiten).

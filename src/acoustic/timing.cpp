@@ -6,6 +6,7 @@
 #include <numbers>
 #include <optional>
 
+#include "avx2_clones.hpp"
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
@@ -85,14 +86,8 @@ template <typename A, typename B>
   return (s0 + s1) + (s2 + s3);
 }
 
-// Dot compiled for AVX2 and for the baseline x86-64 (function multiversioning, chosen at load
-// time): AVX2 without FMA adds the same products in the same four partial sums (one 4-lane
-// register instead of two 2-lane ones), so both give the same value to the bit.
-#if defined(__x86_64__) && defined(__GNUC__)
-#define BOUNCECAL_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define BOUNCECAL_AVX2_CLONES
-#endif
+// Dot compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the same products in the
+// same four partial sums (one 4-lane register instead of two 2-lane ones).
 BOUNCECAL_AVX2_CLONES double Dot(const float* a, const float* b, std::size_t n) {
   return DotBody(a, b, n);
 }

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <stdexcept>
 #include <string>
@@ -32,6 +33,23 @@ TEST(ParallelFor, TheLowestFailingTasksExceptionReachesTheCaller) {
       ADD_FAILURE() << threads << " threads: no exception";
     } catch (const std::runtime_error& e) {
       EXPECT_EQ(std::string(e.what()), "task 7") << threads << " threads";
+    }
+  }
+}
+
+TEST(ParallelForGroups, GroupsAreContiguousAndCoverEveryIndexOnce) {
+  for (const int threads : {1, 2, 3}) {
+    for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{64}, std::size_t{97}}) {
+      std::vector<std::atomic<int>> runs(n);
+      std::atomic<int> groups{0};
+      ParallelForGroups(threads, n, 16, [&](std::size_t begin, std::size_t end) {
+        EXPECT_EQ(begin % 16, 0u);
+        EXPECT_EQ(end, std::min(n, begin + 16));
+        ++groups;
+        for (std::size_t i = begin; i < end; ++i) ++runs[i];
+      });
+      EXPECT_EQ(groups.load(), static_cast<int>((n + 15) / 16)) << threads << " threads, n " << n;
+      for (std::size_t i = 0; i < n; ++i) EXPECT_EQ(runs[i].load(), 1) << "index " << i;
     }
   }
 }

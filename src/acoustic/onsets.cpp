@@ -219,13 +219,11 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   const std::size_t lags = static_cast<std::size_t>(order) + 1;
   const std::size_t nblocks = (n + block - 1) / block;
   std::vector<double> partial(nblocks * lags, 0.0);
-  auto autocorrelate = [&](std::size_t g) {
-    for (std::size_t bi = g * kWhitenGroup; bi < std::min(nblocks, (g + 1) * kWhitenGroup); ++bi)
+  ParallelForGroups(threads, nblocks, kWhitenGroup, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t bi = b0; bi < b1; ++bi)
       BlockAutocorrelation(x.data(), bi * block, std::min(n, bi * block + block), lags,
                            partial.data() + bi * lags);
-  };
-  const std::size_t groups = (nblocks + kWhitenGroup - 1) / kWhitenGroup;
-  ParallelFor(threads, groups, autocorrelate);
+  });
   std::vector<double> r(lags, 0.0);
   for (std::size_t bi = 0; bi < nblocks; ++bi)
     for (std::size_t l = 0; l < lags; ++l)
@@ -242,12 +240,11 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
   const std::size_t blk = 2048;
   const std::size_t fblocks = (n + blk - 1) / blk;
-  auto filter = [&](std::size_t g) {
-    for (std::size_t fb = g * kWhitenGroup; fb < std::min(fblocks, (g + 1) * kWhitenGroup); ++fb)
+  ParallelForGroups(threads, fblocks, kWhitenGroup, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t fb = b0; fb < b1; ++fb)
       PredictionErrorBlock(x.data(), af.data(), af.size(), fb * blk, std::min(n, fb * blk + blk),
                            out.data());
-  };
-  ParallelFor(threads, (fblocks + kWhitenGroup - 1) / kWhitenGroup, filter);
+  });
   return out;
 }
 
@@ -401,12 +398,11 @@ struct OnsetDetector::Correlator {
     out.Allocate(x.size());
     const double scale = 1.0 / static_cast<double>(nn);
     const std::size_t blocks = (x.size() + step - 1) / step;
-    auto part = [&](std::size_t p) {
+    auto part = [&](std::size_t b0, std::size_t b1) {
       FftArrays a(nn);
       double* buf = a.real;
       fftw_complex* spec = a.spec;
-      for (std::size_t bi = p * kCorrelatePart; bi < std::min(blocks, (p + 1) * kCorrelatePart);
-           ++bi) {
+      for (std::size_t bi = b0; bi < b1; ++bi) {
         const std::size_t b = bi * step;
         const std::size_t len = std::min(nn, x.size() - b);
         for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
@@ -423,7 +419,7 @@ struct OnsetDetector::Correlator {
         for (std::size_t i = 0; i < valid; ++i) out[b + i] = static_cast<float>(buf[i] * scale);
       }
     };
-    ParallelFor(threads, (blocks + kCorrelatePart - 1) / kCorrelatePart, part);
+    ParallelForGroups(threads, blocks, kCorrelatePart, part);
   }
 };
 
@@ -607,12 +603,12 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
   const std::size_t nblk = (frames + blk - 1) / blk;
   std::vector<double> blk_thr(nblk);
   // Each block's median and MAD are independent: groups of kThresholdPart blocks per thread task.
-  auto part = [&](std::size_t g) {
-    std::vector<double> buf;
-    for (std::size_t b = g * kThresholdPart; b < std::min(nblk, (g + 1) * kThresholdPart); ++b)
-      blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &buf);
-  };
-  ParallelFor(ResolveThreads(options_.threads), (nblk + kThresholdPart - 1) / kThresholdPart, part);
+  ParallelForGroups(ResolveThreads(options_.threads), nblk, kThresholdPart,
+                    [&](std::size_t b0, std::size_t b1) {
+                      std::vector<double> buf;
+                      for (std::size_t b = b0; b < b1; ++b)
+                        blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &buf);
+                    });
   std::vector<double> thr(frames);
   for (std::size_t t = 0; t < frames; ++t) {
     const double pos =

@@ -42,4 +42,11 @@ void ParallelFor(int threads, std::size_t n, const std::function<void(std::size_
     if (e) std::rethrow_exception(e);
 }
 
+void ParallelForGroups(int threads, std::size_t n, std::size_t group,
+                       const std::function<void(std::size_t, std::size_t)>& task) {
+  const std::size_t g = std::max<std::size_t>(1, group);
+  ParallelFor(threads, (n + g - 1) / g,
+              [&](std::size_t i) { task(i * g, std::min(n, (i + 1) * g)); });
+}
+
 }  // namespace bouncecal

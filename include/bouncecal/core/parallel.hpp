@@ -25,4 +25,9 @@ int ResolveThreads(int requested);
 // rethrown.
 void ParallelFor(int threads, std::size_t n, const std::function<void(std::size_t)>& task);
 
+// ParallelFor over [0, n) cut into consecutive groups of `group` indices (the last one shorter):
+// task(begin, end) runs once per group, for per-index work too small to be a task of its own.
+void ParallelForGroups(int threads, std::size_t n, std::size_t group,
+                       const std::function<void(std::size_t, std::size_t)>& task);
+
 }  // namespace bouncecal

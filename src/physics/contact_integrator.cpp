@@ -9,6 +9,7 @@
 #include <limits>
 #include <sstream>
 
+#include "physics/dop853.hpp"
 #include "physics/dopri5.hpp"
 #include "physics/scalar.hpp"
 
@@ -21,21 +22,45 @@ using scalar::Quotient;
 constexpr int kMaxLawState = 7;
 // Event times are located to this relative precision (in units of the contact time).
 constexpr double kEventTolerance = 1e-14;
-// Phase changes (contact_integrator.hpp). The approach phase ends once delta' < 0.7 v_in; the
-// exit phase starts once delta' < 0 and delta < 0.7 of its peak, and is abandoned if |delta'|
-// falls below half its value at entry. Measured on the Hertz laws (bench_simulate): 0.5..0.8
-// give the same step counts within 5 %.
-constexpr double kApproachEndSpeed = 0.7;
+// Phase changes (contact_integrator.hpp). The approach phase ends once delta' < a fraction of
+// v_in (kTuning below); the exit phase starts once delta' < 0 and delta < 0.7 of its peak, and
+// is abandoned if |delta'| falls below half its value at entry. Measured on the Hertz laws
+// (bench_simulate): 0.5..0.8 give the same step counts within 5 %.
 constexpr double kExitOverlapFraction = 0.7;
 constexpr double kExitSpeedFloor = 0.5;
-// The local error is held at this fraction of rel_tolerance: measured with bench_simulate, it
-// keeps every law's errors over a 30-bounce sequence at or below those the previous integrator
-// (odeint's controlled dopri5, relative max norm) gave at the same rel_tolerance, so the option
-// keeps its meaning; the law state is measured in its own scale (StateScale).
-constexpr double kToleranceScale = 0.25;
-// The first step, as a fraction of the contact (or of the approach phase's range of u) at
-// rel_tolerance 1: 0.5 rel_tolerance^(1/5) (a fifth-order method's step for that tolerance).
-constexpr double kFirstStepFactor = 0.5;
+
+// The peak overlap in units of v_in t_c (Hertz: delta_max = v t_c / 2.94).
+constexpr double kPeakOverlapEstimate = 0.34;
+
+// ContactMethod::kAuto: DOP853 (order 8) at and below this rel_tolerance, dopri5 (order 5)
+// above it (bench_simulate: DOP853 takes fewer steps and less time from 1e-7 down).
+constexpr double kHighOrderTolerance = 1e-7;
+
+// What differs between the two methods (measured over every law at impact speeds 2 m/s ..
+// 0.3 mm/s with gravity, against tests/law_oracle.hpp and with bench_simulate; the dopri5
+// values are the ones this integrator was tuned with before DOP853 was added):
+//   tolerance_scale: the local error is held at this fraction of rel_tolerance: 1/4 keeps every
+//     law's errors at or below those of the integrator before dopri5 (odeint's controlled
+//     dopri5), so the option keeps its meaning. The same for DOP853: its errors in e per contact
+//     are then at or below dopri5's at the same rel_tolerance (1e-7 .. 1e-10); at 1 they were
+//     not (Hunt-Crossley with n = 1.2: 1.4e-9 at 1e-9, the law's first-integral test).
+//   first_step: the first step, as a fraction of the contact (or of the approach phase's range
+//     of u) at rel_tolerance 1: first_step (tolerance_scale rtol)^(1/order). DOP853's first
+//     step at 0.5 had errors ~1e-6 of the tolerance.
+//   approach_end_speed, approach_end_overlap: the approach phase (u) ends once delta' < this
+//     fraction of v_in, or delta beyond this fraction of the estimated peak overlap (a ball that
+//     gravity keeps accelerating). 0.5..0.8 gave dopri5 the same step counts within 5 %;
+//     DOP853's longer steps find the u phase's singular end (delta' -> 0) harder: 0.95 and 0.25
+//     saved a fifth of its steps and half its rejected ones.
+//   exit_first_step: the exit phase's first step against the last time step mapped to u
+//     (DOP853's was rejected at full length for the Hertz laws).
+struct Tuning {
+  double tolerance_scale, first_step, approach_end_speed, approach_end_overlap, exit_first_step;
+};
+template <class M>
+inline constexpr Tuning kTuning{0.25, 0.5, 0.7, std::numeric_limits<double>::infinity(), 1.0};
+template <>
+inline constexpr Tuning kTuning<dop853::Method>{0.25, 2.0, 0.95, 0.25, 0.7};
 
 enum class Phase { kApproach, kMiddle, kExit };
 
@@ -380,7 +405,7 @@ T DerivativePart(const T& g) {
 
 // One contact in scalar type T (double, or SensitivityJet for forward sensitivities), state
 // size N. Run() is the list of stages; each After* handles one phase's accepted step.
-template <class T, size_t N>
+template <class T, size_t N, class M>
 class ContactIntegration {
  public:
   using State = std::array<T, N>;
@@ -461,8 +486,10 @@ class ContactIntegration {
     sys_(x_, f_, indep_);
     // The first step from the contact's own scale: u runs to about (0.34)^(1/q) at the peak
     // (Hertz: delta_max = v t_c / 2.94), time to 1.
-    const double span = sys_.phase() == Phase::kApproach ? std::pow(0.34, 1.0 / q) : 1.0;
-    h_ = kFirstStepFactor * std::pow(kToleranceScale * options_.rel_tolerance, 0.2) * span;
+    const double span =
+        sys_.phase() == Phase::kApproach ? std::pow(kPeakOverlapEstimate, 1.0 / q) : 1.0;
+    h_ = kTuning<M>.first_step *
+         std::pow(kTuning<M>.tolerance_scale * options_.rel_tolerance, 1.0 / M::kOrder) * span;
     Refresh();
   }
 
@@ -473,7 +500,7 @@ class ContactIntegration {
   bool TryStep() {
     ++run_.steps;
     if (sys_.phase() == Phase::kExit) h_ = std::max(h_, -indep_);  // land on u = 0 exactly
-    stepper_.Step(sys_, x_, f_, indep_, h_, x_new_, f_new_, err_, n_);
+    stepper_.Step(sys_, x_, f_, indep_, h_, x_new_, f_new_, n_);
     if (!AllFinite(x_new_) || !AllFinite(f_new_)) {
       // Non-finite force at a stage (e.g. a law evaluated out of its domain): smaller step.
       h_ *= 0.25;
@@ -495,17 +522,16 @@ class ContactIntegration {
     return true;
   }
 
-  // RMS of err_i / (atol + kToleranceScale rtol max(1, |x_i|, |x_new_i|)) over the active
-  // scaled variables.
+  // The stepper's norm of err_i / (atol + tolerance_scale rtol max(1, |x_i|, |x_new_i|)) over the
+  // active scaled variables.
   double ErrorNorm() const {
-    const double rtol = kToleranceScale * options_.rel_tolerance;
-    double sum = 0.0;
+    const double rtol = kTuning<M>.tolerance_scale * options_.rel_tolerance;
+    std::array<double, N> sk;
     for (size_t i = 0; i < n_; ++i) {
       const double size = std::max({1.0, std::abs(ValueOf(x_[i])), std::abs(ValueOf(x_new_[i]))});
-      const double r = err_[i] / (options_.abs_tolerance + rtol * size);
-      sum += r * r;
+      sk[i] = options_.abs_tolerance + rtol * size;
     }
-    return std::sqrt(sum / static_cast<double>(n_));
+    return stepper_.ErrorNorm(sk, n_);
   }
 
   // Accepts the step to x_new_, whose physical view is `end`.
@@ -525,7 +551,12 @@ class ContactIntegration {
     Commit(end);
     CheckStuck();
     if (done_) return;
-    if (here_.delta_dot < kApproachEndSpeed * Scale().speed_m_s) ToTime();
+    const double end_overlap_m =
+        kTuning<M>.approach_end_overlap * kPeakOverlapEstimate * Scale().length_m;
+    if (here_.delta_dot < kTuning<M>.approach_end_speed * Scale().speed_m_s ||
+        here_.delta > end_overlap_m) {
+      ToTime();
+    }
   }
 
   // From u (approach or exit) to time, at the current point: tau becomes the independent
@@ -571,7 +602,7 @@ class ContactIntegration {
     const double rho_inverse = delta_dot_s / sys_.UPowerSlope(u);  // du/dtau
     sys_.SetPhase(Phase::kExit, sys_.root());
     indep_ = u;
-    h_ = -std::abs(h_ * rho_inverse);
+    h_ = -std::abs(h_ * rho_inverse) * kTuning<M>.exit_first_step;
     exit_entry_speed_ = std::abs(delta_dot_s);
     sys_(x_, f_, indep_);
     Refresh();
@@ -603,7 +634,7 @@ class ContactIntegration {
   // Dense output of the step just taken ([indep_, indep_ + h_], values).
   PhysN<double, N> Dense(double at) {
     const double theta = h_ != 0.0 ? (at - indep_) / h_ : 0.0;
-    stepper_.Dense(theta, x_, x_new_, f_, f_new_, h_, xd_, n_);
+    stepper_.Dense(sys_, indep_, theta, x_, x_new_, f_, f_new_, h_, xd_, n_);
     return sys_.Unscale(Values(xd_), at);
   }
 
@@ -704,11 +735,10 @@ class ContactIntegration {
   size_t n_;
   bool has_switch_;      // the law's HasSwitch (asked once, not at every step)
   bool force_zero_end_;  // the law ends at F = 0
-  dopri5::Stepper<T, N> stepper_;
-  dopri5::Controller controller_;
+  typename M::template Stepper<T, N> stepper_;
+  typename M::Controller controller_;
   State x_{}, f_{}, x_new_{}, f_new_{}, xd_{};
   PhysN<double, N> here_{};  // physical view of x_ at indep_
-  std::array<double, N> err_{};
   double indep_ = 0.0, h_ = 0.0, h_next_ = 0.0;
   bool use_exit_ = false, exit_disabled_ = false;
   double exit_entry_speed_ = 0.0;
@@ -720,8 +750,8 @@ class ContactIntegration {
   ContactSensitivity sensitivity_;
 };
 
-template <class T, size_t N>
-void ContactIntegration<T, N>::TrackPeaks(double a, double b, const PhysN<double, N>& pb) {
+template <class T, size_t N, class M>
+void ContactIntegration<T, N, M>::TrackPeaks(double a, double b, const PhysN<double, N>& pb) {
   const PhysN<double, N>& pa = here_;
   // At the end of a whole step the force is known from the ball's acceleration (the FSAL
   // derivative): y'' = g - F/m (in the u phases y'' = (dx1/du) / (dtau/du)).
@@ -769,9 +799,9 @@ void ContactIntegration<T, N>::TrackPeaks(double a, double b, const PhysN<double
 
 // 1. Branch switch: the step ran on the old branch continued past the switch, so the dense
 // output is smooth; locate the sign change and end the step window there. True if switched.
-template <class T, size_t N>
-bool ContactIntegration<T, N>::LocateSwitch(double t, double t1, const PhysN<double, N>& end,
-                                            double* t_w) {
+template <class T, size_t N, class M>
+bool ContactIntegration<T, N, M>::LocateSwitch(double t, double t1, const PhysN<double, N>& end,
+                                               double* t_w) {
   *t_w = t1;
   if (!has_switch_) return false;
   const double sign = sys_.positive_branch() ? 1.0 : -1.0;
@@ -785,9 +815,9 @@ bool ContactIntegration<T, N>::LocateSwitch(double t, double t1, const PhysN<dou
 }
 
 // 2. Contact end within the window [t, t_w]: delta returns to 0 (or F to 0 for kForceZero laws).
-template <class T, size_t N>
-double ContactIntegration<T, N>::LocateEnd(double t, double t_w, const PhysN<double, N>& pw,
-                                           bool* found) {
+template <class T, size_t N, class M>
+double ContactIntegration<T, N, M>::LocateEnd(double t, double t_w, const PhysN<double, N>& pw,
+                                              bool* found) {
   const bool force_zero_end = force_zero_end_;
   const double fw = force_zero_end ? sys_.Force(pw) : 0.0;
   const double tol = kEventTolerance * std::max(1.0, t_w);
@@ -812,12 +842,12 @@ double ContactIntegration<T, N>::LocateEnd(double t, double t_w, const PhysN<dou
 // inside), then corrected to the event in time to first order: the value by a Newton step for
 // delta = 0 (end rule kOverlapZero), the derivative parts by the implicit-function rule
 // d t_end / d theta = -(d g / d theta) / g'.
-template <class T, size_t N>
-void ContactIntegration<T, N>::FinishAtEnd(double t, double t_end) {
+template <class T, size_t N, class M>
+void ContactIntegration<T, N, M>::FinishAtEnd(double t, double t_end) {
   const bool force_zero_end = force_zero_end_;
   State xe = x_new_, fe = f_new_;
   if (t_end > t) {
-    stepper_.Step(sys_, x_, f_, t, t_end - t, xe, fe, err_, n_);
+    stepper_.Step(sys_, x_, f_, t, t_end - t, xe, fe, n_);
     if (!AllFinite(xe)) {
       xe = x_new_;
       fe = f_new_;
@@ -851,11 +881,11 @@ void ContactIntegration<T, N>::FinishAtEnd(double t, double t_end) {
 // The step ended at a located switch t_w: restart the integrator on the other branch there,
 // from a state recomputed by one step of exactly t_w - t on the old branch (continued past the
 // switch, so the step is smooth). The derivative parts jump by (f- - f+) d t_w / d theta.
-template <class T, size_t N>
-void ContactIntegration<T, N>::RestartOnOtherBranch(double t, double t_w, const State& x_dense) {
+template <class T, size_t N, class M>
+void ContactIntegration<T, N, M>::RestartOnOtherBranch(double t, double t_w, const State& x_dense) {
   State xw = x_dense, f_minus = f_new_;
   if (t_w > t) {
-    stepper_.Step(sys_, x_, f_, t, t_w - t, xw, f_minus, err_, n_);
+    stepper_.Step(sys_, x_, f_, t, t_w - t, xw, f_minus, n_);
     if (!AllFinite(xw)) {
       xw = x_dense;
       sys_(xw, f_minus, t_w);
@@ -893,8 +923,8 @@ void ContactIntegration<T, N>::RestartOnOtherBranch(double t, double t_w, const 
 
 // 3. Stuck: the energy left cannot send the ball off faster than stuck_speed, or the contact
 // lasts far longer than any rebound would.
-template <class T, size_t N>
-void ContactIntegration<T, N>::CheckStuck() {
+template <class T, size_t N, class M>
+void ContactIntegration<T, N, M>::CheckStuck() {
   const ValueState xv = Values(x_), fv = Values(f_);
   const bool in_time = sys_.phase() == Phase::kMiddle;
   const PhysN<double, N>& pc = here_;
@@ -927,15 +957,15 @@ void ContactIntegration<T, N>::CheckStuck() {
 }
 
 // Time for the exit phase: the ball moves out and the overlap is below 0.7 of its peak.
-template <class T, size_t N>
-bool ContactIntegration<T, N>::EnterExit() const {
+template <class T, size_t N, class M>
+bool ContactIntegration<T, N, M>::EnterExit() const {
   if (!use_exit_ || exit_disabled_) return false;
   return here_.delta_dot < 0.0 && here_.delta > 0.0 &&
          here_.delta < kExitOverlapFraction * run_.peak_overlap_m;
 }
 
-template <class T, size_t N>
-void ContactIntegration<T, N>::AfterMiddleStep() {
+template <class T, size_t N, class M>
+void ContactIntegration<T, N, M>::AfterMiddleStep() {
   const double t = indep_, t1 = indep_ + h_;
   const PhysN<double, N> end = sys_.Unscale(Values(x_new_), t1);
   double t_w = t1;
@@ -966,7 +996,16 @@ template <class T, size_t N>
 ContactRun Integrate(const ContactDynamics& dyn, const ContactBody& body, double time_scale_s,
                      double v_in, double g, const PlateModel* plate,
                      const ContactRunOptions& options, ContactSensitivity* sensitivity) {
-  ContactIntegration<T, N> integration(dyn, body, time_scale_s, v_in, g, plate, options);
+  const bool high_order =
+      options.method == ContactMethod::kDop853 ||
+      (options.method == ContactMethod::kAuto && options.rel_tolerance <= kHighOrderTolerance);
+  if (high_order) {
+    ContactIntegration<T, N, dop853::Method> integration(dyn, body, time_scale_s, v_in, g, plate,
+                                                         options);
+    return integration.Run(sensitivity);
+  }
+  ContactIntegration<T, N, dopri5::Method> integration(dyn, body, time_scale_s, v_in, g, plate,
+                                                       options);
   return integration.Run(sensitivity);
 }
 

@@ -125,6 +125,29 @@ class Stepper {
     }
   }
 
+  // The interface the contact integrator uses (shared with dop853::Stepper): the step keeps
+  // its error estimate, ErrorNorm gives its RMS norm with per-component scales sk
+  // (atol + rtol size; <= 1 accepts the step), Dense takes the system and the step's start
+  // (unused here: the extension needs no extra stages).
+  template <class Sys>
+  void Step(const Sys& sys, const State& x, const State& f, double t, double h, State& x1,
+            State& f1, size_t n_active) {
+    Step(sys, x, f, t, h, x1, f1, err_, n_active);
+  }
+  double ErrorNorm(const std::array<double, N>& sk, size_t n) const {
+    double sum = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      const double r = err_[i] / sk[i];
+      sum += r * r;
+    }
+    return std::sqrt(sum / static_cast<double>(n));
+  }
+  template <class Sys>
+  void Dense(const Sys&, double, double theta, const State& x, const State& x1, const State& f,
+             const State& f1, double h, State& out, size_t n_active) const {
+    Dense(theta, x, x1, f, f1, h, out, n_active);
+  }
+
   // The continuous extension of the last Step (x -> x1 over h, derivatives f, f1) at
   // theta = (t' - t) / h in [0, 1].
   void Dense(double theta, const State& x, const State& x1, const State& f, const State& f1,
@@ -181,6 +204,7 @@ class Stepper {
   static size_t Width(size_t n_active) { return kFixedWidth ? N : n_active; }
 
   State k2_{}, k3_{}, k4_{}, k5_{}, k6_{};
+  std::array<double, N> err_{};
 };
 
 // log2 (to 0.01) and exp2 (to 0.3 %) for the step-size controller: exponent from the bits, a
@@ -238,6 +262,14 @@ class Controller {
   static constexpr float kInitialLog = -13.287712f;  // log2(1e-4): the memory at the start
   float previous_log_ = kInitialLog;
   bool last_rejected_ = false;
+};
+
+// The method as the contact integrator sees it.
+struct Method {
+  template <class T, size_t N>
+  using Stepper = dopri5::Stepper<T, N>;
+  using Controller = dopri5::Controller;
+  static constexpr int kOrder = 5;
 };
 
 }  // namespace bouncecal::dopri5

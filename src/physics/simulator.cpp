@@ -64,6 +64,7 @@ ContactRunOptions RunOptions(const SimulatorOptions& options, double stuck_speed
   ContactRunOptions r;
   r.rel_tolerance = options.rel_tolerance;
   r.abs_tolerance = options.abs_tolerance;
+  r.method = options.contact_method;
   r.max_steps = options.max_steps_per_contact;
   r.stuck_speed_m_s = stuck_speed_m_s;
   r.label = label;

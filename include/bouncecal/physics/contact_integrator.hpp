@@ -61,6 +61,11 @@ struct PlateModel {
   double damping_n_s_m = 0.0;
 };
 
+// The Runge-Kutta pair a contact is integrated with. kAuto: DOP853 (order 8,
+// physics/dop853.hpp) at rel_tolerance <= 1e-7, where it takes fewer right-hand-side
+// evaluations for the same error, dopri5 (order 5) above (tools/bench_simulate measures both).
+enum class ContactMethod { kAuto, kDopri5, kDop853 };
+
 struct ContactRunOptions {
   double rel_tolerance = 1e-9;   // on the scaled variables (see above)
   double abs_tolerance = 1e-12;  // on the scaled variables
@@ -72,6 +77,7 @@ struct ContactRunOptions {
   // ... or when the contact lasts longer than this many contact-time estimates.
   double max_contact_time_factor = 1e5;
   std::string label = "contact";  // names the law in messages
+  ContactMethod method = ContactMethod::kAuto;
 };
 
 struct ContactRun {

@@ -42,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/contact_law.hpp"
 #include "bouncecal/physics/scene.hpp"
 
@@ -50,7 +51,8 @@ namespace bouncecal {
 struct SimulatorOptions {
   double rel_tolerance = 1e-9;   // adaptive integrator tolerances (contact phase)
   double abs_tolerance = 1e-12;  // scaled internally to the contact's own units
-  bool use_closed_form = true;   // use ContactLaw::SolveContact where available
+  ContactMethod contact_method = ContactMethod::kAuto;  // contact_integrator.hpp
+  bool use_closed_form = true;  // use ContactLaw::SolveContact where available
   int max_steps_per_contact = 200000;
   // Gravity acts during integrated contacts (m delta'' = m g - F). Off: contacts as in the
   // laws' closed forms (useful to compare with them).

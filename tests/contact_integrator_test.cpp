@@ -1,13 +1,16 @@
 // The contact integrator as a unit (issue 11 item 8): its Dormand-Prince stepper against
-// Boost.Odeint's and for its order, the PI controller, analytic contacts (undamped spring:
-// e = 1, t_c = pi sqrt(m/k)), errors falling with the tolerance, the smooth end of the u phase
-// (the contact ends exactly at delta = 0), energy bookkeeping with a compliant plate, the stuck
-// and step-limit endings, the contact-time estimate, and one contact's forward sensitivities
-// against central differences.
+// Boost.Odeint's and for its order, the DOP853 stepper for its orders (step, dense output, error
+// estimate), the controllers, analytic contacts (undamped spring: e = 1, t_c = pi sqrt(m/k);
+// undamped Hertz) and DOP853's order of convergence on them, the same located events with
+// either method, errors falling with the tolerance, the smooth end of the u phase (the contact
+// ends exactly at delta = 0), energy bookkeeping with a compliant plate, the stuck and
+// step-limit endings, the contact-time estimate, and one contact's forward sensitivities
+// against central differences with either method.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -16,6 +19,7 @@
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "law_oracle.hpp"
+#include "physics/dop853.hpp"
 #include "physics/dopri5.hpp"
 
 namespace bouncecal {
@@ -89,6 +93,75 @@ TEST(Dopri5, ControllerGrowsBoundedAndNeverRightAfterARejection) {
   EXPECT_LT(c.Accepted(0.99), 1.0);  // an error just below 1: a slightly smaller next step
 }
 
+TEST(Dop853, StepIsEighthOrderAndDenseOutputSeventh) {
+  // Local errors from y = sin t (both components): the step O(h^9), the dense output at
+  // mid-step O(h^8): halving h divides them by ~512 and ~256 (measured log2 ratios 8.9-9.0 and
+  // 7.9-8.0).
+  const State2 x{0.0, 1.0};
+  State2 f;
+  Harmonic()(x, f, 0.0);
+  double step_prev = 0.0, dense_prev = 0.0;
+  for (double h : {0.8, 0.4, 0.2}) {
+    dop853::Stepper<double, 2> s;
+    State2 x1, f1, mid;
+    s.Step(Harmonic(), x, f, 0.0, h, x1, f1, 2);
+    s.Dense(Harmonic(), 0.0, 0.5, x, x1, f, f1, h, mid, 2);
+    const double step_err = std::hypot(x1[0] - std::sin(h), x1[1] - std::cos(h));
+    const double dense_err = std::hypot(mid[0] - std::sin(0.5 * h), mid[1] - std::cos(0.5 * h));
+    std::printf("[ measured ] h %.2f: step error %.3g, mid-step dense error %.3g\n", h, step_err,
+                dense_err);
+    if (step_prev > 0.0) {
+      EXPECT_NEAR(std::log2(step_prev / step_err), 9.0, 0.3) << h;
+      EXPECT_NEAR(std::log2(dense_prev / dense_err), 8.0, 0.3) << h;
+    }
+    step_prev = step_err;
+    dense_prev = dense_err;
+    // The dense output reproduces both ends (to rounding: x + (x1 - x) at theta = 1).
+    State2 start, end;
+    s.Dense(Harmonic(), 0.0, 0.0, x, x1, f, f1, h, start, 2);
+    s.Dense(Harmonic(), 0.0, 1.0, x, x1, f, f1, h, end, 2);
+    EXPECT_EQ(start[0], x[0]);
+    EXPECT_NEAR(end[0], x1[0], 1e-16);
+    EXPECT_NEAR(end[1], x1[1], 1e-16);
+  }
+}
+
+TEST(Dop853, ErrorEstimateFollowsTheLocalError) {
+  // The estimate (HNW §II.10: |h| err5^2 / sqrt(err5^2 + 0.01 err3^2)) is O(h^8) (measured
+  // log2 ratios 8.0) and bounds the true local error of the step, O(h^9), from above.
+  const State2 x{0.3, 0.9};
+  State2 f;
+  Harmonic()(x, f, 0.0);
+  const std::array<double, 2> unit{1.0, 1.0};
+  double prev = 0.0;
+  for (double h : {0.4, 0.2, 0.1}) {
+    dop853::Stepper<double, 2> s;
+    State2 x1, f1;
+    s.Step(Harmonic(), x, f, 0.0, h, x1, f1, 2);
+    const double est = s.ErrorNorm(unit, 2);
+    // Exact: rotation of (y, y') by the angle h.
+    const double y = x[0] * std::cos(h) + x[1] * std::sin(h);
+    const double yd = -x[0] * std::sin(h) + x[1] * std::cos(h);
+    const double err = std::hypot(x1[0] - y, x1[1] - yd) / std::sqrt(2.0);
+    EXPECT_GE(est, err) << h;
+    if (prev > 0.0) {
+      EXPECT_NEAR(std::log2(prev / est), 8.0, 0.3) << h;
+    }
+    prev = est;
+  }
+}
+
+TEST(Dop853, ControllerGrowsBoundedAndNeverRightAfterARejection) {
+  dop853::Controller c;
+  EXPECT_LE(c.Accepted(1e-12), 6.0);  // at most sixfold
+  EXPECT_GT(c.Accepted(1e-12), 1.0);
+  EXPECT_NEAR(c.Rejected(1e6), 1.0 / 3.0, 1e-12);  // at most threefold smaller
+  EXPECT_LT(c.Rejected(2.0), 1.0);
+  EXPECT_LE(c.Accepted(1e-6), 1.0);  // no growth right after a rejection
+  EXPECT_GT(c.Accepted(1e-6), 1.0);
+  EXPECT_LT(c.Accepted(0.99), 1.0);
+}
+
 // ------------------------------------------------------------------------------------------
 std::unique_ptr<ContactLaw> Law(const std::string& name, std::map<std::string, double> params,
                                 const Scene& scene = Scene{}) {
@@ -118,6 +191,97 @@ TEST(ContactIntegrator, UndampedSpringIsTheHalfSine) {
   EXPECT_NEAR(r.work_j, 0.0, 1e-10 * 0.5 * m * v * v);
   EXPECT_EQ(r.switches, 0);
   EXPECT_FALSE(r.closed_form);
+}
+
+// Errors of one undamped contact against its closed form (e = 1 and the contact time), no
+// gravity: the linear spring (t_c = pi sqrt(m/k); its end located in time on the dense output)
+// and Hertz (hunt-crossley with alpha = 0; t_c from hertz-tsuji's closed form; approach and
+// exit in u).
+struct ConvergencePoint {
+  double rtol, err_e, err_t, steps;
+};
+std::vector<ConvergencePoint> UndampedErrors(const std::string& name, ContactMethod method) {
+  const ContactBody body = BodyFromScene(Scene{});
+  const double v = 1.3;
+  std::unique_ptr<ContactLaw> law;
+  double t_exact = 0.0;
+  if (name == "linear") {
+    const double k = 1e7;
+    law = Law("linear-dashpot", {{"k", k}, {"c", 0.0}});
+    t_exact = M_PI * std::sqrt(body.mass_kg / k);
+  } else {
+    law = Law("hunt-crossley", {{"alpha", 0.0}});
+    const auto tsuji = Law("hertz-tsuji", {{"e", 1.0}});
+    t_exact = *tsuji->ContactTime(tsuji->ParameterValues(), body, v);
+  }
+  std::vector<ConvergencePoint> out;
+  for (int ex = 7; ex <= 11; ++ex) {
+    ContactRunOptions o;
+    o.rel_tolerance = std::pow(10.0, -ex);
+    o.abs_tolerance = 1e-3 * o.rel_tolerance;
+    o.method = method;
+    const ContactRun r = RunContact(*law, law->ParameterValues(), body, v, 0.0, nullptr, o);
+    EXPECT_EQ(r.end, ContactRun::End::kSeparated) << r.detail;
+    out.push_back({o.rel_tolerance, std::abs(r.v_out_m_s / v - 1.0),
+                   std::abs(r.contact_s - t_exact) / t_exact, static_cast<double>(r.steps)});
+  }
+  return out;
+}
+
+TEST(ContactIntegrator, Dop853ConvergesAtItsOrderOnUndampedContacts) {
+  for (const char* name : {"linear", "hertz"}) {
+    SCOPED_TRACE(name);
+    const auto p8 = UndampedErrors(name, ContactMethod::kDop853);
+    const auto p5 = UndampedErrors(name, ContactMethod::kDopri5);
+    // Order: over rtol 1e-7 .. 1e-11 the contact-time error against the work,
+    // -log(err) / log(steps): measured 8.8 (linear) and 8.5 (hertz) for DOP853, 6.0 and 6.1 for
+    // dopri5 (whose errors fall faster than rtol here).
+    auto slope = [](const std::vector<ConvergencePoint>& p) {
+      return std::log(p.back().err_t / p.front().err_t) /
+             std::log(p.back().steps / p.front().steps);
+    };
+    std::printf("[ measured ] %s: order DOP853 %.2f, dopri5 %.2f\n", name, -slope(p8), -slope(p5));
+    for (size_t i = 0; i < p8.size(); ++i) {
+      std::printf(
+          "[ measured ]   rtol %.0e: DOP853 e %.2e t %.2e (%g steps), dopri5 e %.2e t %.2e (%g "
+          "steps)\n",
+          p8[i].rtol, p8[i].err_e, p8[i].err_t, p8[i].steps, p5[i].err_e, p5[i].err_t, p5[i].steps);
+    }
+    EXPECT_GT(-slope(p8), 7.5);
+    EXPECT_LT(-slope(p5), 7.0);
+    for (size_t i = 0; i < p8.size(); ++i) {
+      // Within the tolerance asked for, and in fewer steps than dopri5.
+      EXPECT_LT(p8[i].err_e, p8[i].rtol) << p8[i].rtol;
+      EXPECT_LT(p8[i].err_t, p8[i].rtol) << p8[i].rtol;
+      EXPECT_LT(p8[i].steps, p5[i].steps) << p8[i].rtol;
+    }
+  }
+}
+
+// The events located inside steps (the contact end in time, the switch, the overlap and force
+// maxima) come out the same with either method at a tight tolerance.
+TEST(ContactIntegrator, BothMethodsLocateTheSameEvents) {
+  const ContactBody body = BodyFromScene(Scene{});
+  for (const char* name : {"linear-dashpot", "linear-dashpot-force-zero", "walton-braun",
+                           "walton-braun-hysteretic", "hertz-tsuji", "jiang-liu"}) {
+    SCOPED_TRACE(name);
+    const auto law = Law(name, {});
+    ContactRunOptions o = Tight();
+    o.method = ContactMethod::kDopri5;
+    const ContactRun a = RunContact(*law, law->ParameterValues(), body, 1.7, 9.8, nullptr, o);
+    o.method = ContactMethod::kDop853;
+    const ContactRun b = RunContact(*law, law->ParameterValues(), body, 1.7, 9.8, nullptr, o);
+    ASSERT_EQ(a.end, ContactRun::End::kSeparated) << a.detail;
+    ASSERT_EQ(b.end, ContactRun::End::kSeparated) << b.detail;
+    EXPECT_EQ(a.switches, b.switches);
+    // Measured differences <= 3.3e-12 relative (rtol 1e-11), bounds 30x that.
+    EXPECT_NEAR(b.contact_s, a.contact_s, 1e-10 * a.contact_s);
+    EXPECT_NEAR(b.v_out_m_s, a.v_out_m_s, 1e-10 * 1.7);
+    EXPECT_NEAR(b.peak_overlap_m, a.peak_overlap_m, 1e-10 * a.peak_overlap_m);
+    EXPECT_NEAR(b.peak_force_n, a.peak_force_n, 1e-9 * a.peak_force_n);
+    EXPECT_NEAR(b.separation_depth_m, a.separation_depth_m, 1e-10 * a.peak_overlap_m);
+    EXPECT_LT(b.steps, a.steps);
+  }
 }
 
 TEST(ContactIntegrator, HertzContactEndsExactlyAtZeroOverlap) {
@@ -292,41 +456,45 @@ TEST(ContactIntegrator, OneContactsSensitivitiesMatchCentralDifferences) {
   const ContactBody body = BodyFromScene(Scene{});
   const PlateModel plate{0.2, 5e6, 10.0};
   ContactRunOptions o = Tight();
-  for (const char* name :
-       {"hertz-tsuji", "walton-braun-hysteretic", "jiang-liu", "linear-dashpot-force-zero"}) {
-    for (const PlateModel* pl : {static_cast<const PlateModel*>(nullptr), &plate}) {
-      SCOPED_TRACE(std::string(name) + (pl ? " with plate" : ""));
-      const auto law = Law(name, {});
-      const std::vector<double> p = law->ParameterValues();
-      auto run = [&](const std::vector<double>& q, double v, ContactSensitivity* s) {
-        const auto dyn = law->Dynamics(q, body);
-        return RunContact(*dyn, body, EstimateContactTime(*law, q, *dyn, body, v), v, 9.8, pl, o,
-                          s);
-      };
-      const double v = 1.2;
-      ContactSensitivity s;
-      const ContactRun r = run(p, v, &s);
-      ASSERT_EQ(r.end, ContactRun::End::kSeparated) << r.detail;
-      for (size_t j = 0; j <= p.size(); ++j) {
-        const double x = j < p.size() ? p[j] : v;
-        const double h = 1e-6 * std::abs(x);
-        std::vector<double> hi = p, lo = p;
-        double vh = v, vl = v;
-        if (j < p.size()) {
-          hi[j] += h;
-          lo[j] -= h;
-        } else {
-          vh += h;
-          vl -= h;
+  for (ContactMethod method : {ContactMethod::kDopri5, ContactMethod::kDop853}) {
+    o.method = method;
+    for (const char* name :
+         {"hertz-tsuji", "walton-braun-hysteretic", "jiang-liu", "linear-dashpot-force-zero"}) {
+      for (const PlateModel* pl : {static_cast<const PlateModel*>(nullptr), &plate}) {
+        SCOPED_TRACE(std::string(name) + (pl ? " with plate" : "") +
+                     (method == ContactMethod::kDop853 ? " (DOP853)" : " (dopri5)"));
+        const auto law = Law(name, {});
+        const std::vector<double> p = law->ParameterValues();
+        auto run = [&](const std::vector<double>& q, double v, ContactSensitivity* s) {
+          const auto dyn = law->Dynamics(q, body);
+          return RunContact(*dyn, body, EstimateContactTime(*law, q, *dyn, body, v), v, 9.8, pl, o,
+                            s);
+        };
+        const double v = 1.2;
+        ContactSensitivity s;
+        const ContactRun r = run(p, v, &s);
+        ASSERT_EQ(r.end, ContactRun::End::kSeparated) << r.detail;
+        for (size_t j = 0; j <= p.size(); ++j) {
+          const double x = j < p.size() ? p[j] : v;
+          const double h = 1e-6 * std::abs(x);
+          std::vector<double> hi = p, lo = p;
+          double vh = v, vl = v;
+          if (j < p.size()) {
+            hi[j] += h;
+            lo[j] -= h;
+          } else {
+            vh += h;
+            vl -= h;
+          }
+          const ContactRun a = run(hi, vh, nullptr), b = run(lo, vl, nullptr);
+          const double dv = (a.v_out_m_s - b.v_out_m_s) / (2 * h);
+          const double dt = (a.contact_s - b.contact_s) / (2 * h);
+          // Relative to the natural scales v / x and t_c / x; central differences at rel. tol.
+          // 1e-11 carry ~1e-5 of them (noise / h); measured agreement 1e-7..1e-6.
+          EXPECT_NEAR(s.v_out[j], dv, 2e-5 * v / std::abs(x)) << "d v_out / d theta_" << j;
+          EXPECT_NEAR(s.contact_s[j], dt, 2e-5 * r.contact_s / std::abs(x))
+              << "d t_c / d theta_" << j;
         }
-        const ContactRun a = run(hi, vh, nullptr), b = run(lo, vl, nullptr);
-        const double dv = (a.v_out_m_s - b.v_out_m_s) / (2 * h);
-        const double dt = (a.contact_s - b.contact_s) / (2 * h);
-        // Relative to the natural scales v / x and t_c / x; central differences at rel. tol.
-        // 1e-11 carry ~1e-5 of them (noise / h); measured agreement 1e-7..1e-6.
-        EXPECT_NEAR(s.v_out[j], dv, 2e-5 * v / std::abs(x)) << "d v_out / d theta_" << j;
-        EXPECT_NEAR(s.contact_s[j], dt, 2e-5 * r.contact_s / std::abs(x))
-            << "d t_c / d theta_" << j;
       }
     }
   }

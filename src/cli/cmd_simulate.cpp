@@ -63,9 +63,45 @@ void PrintCsv(const Simulation& s) {
 // format parsing and multi-precision arithmetic: printf was 15 % of `simulate`'s instructions
 // for the 10 000 rows of the Hunt-Crossley laws (callgrind). A number too long for the buffer
 // goes through snprintf.
+// Fixed notation by integer arithmetic where that is provably what printf prints: value 10^p
+// (one rounding, relative error <= 2^-53) below 1e12 is within 1.2e-4 of the exact decimal
+// product, so when its fraction is farther than 1e-3 from one half, the correctly rounded
+// integer is its nearest integer. Otherwise (and for nan, inf, huge values) false.
+bool FixedByIntegers(double value, int precision, char* buffer, size_t* length) {
+  static constexpr double kPowers[] = {1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+  if (precision < 1 || precision > 9 || !(std::abs(value) < 1e3)) return false;
+  const double scaled = std::abs(value) * kPowers[precision];
+  const double below = std::floor(scaled);
+  if (std::abs(scaled - below - 0.5) <= 1e-3) return false;
+  auto digits = static_cast<unsigned long long>(scaled - below > 0.5 ? below + 1.0 : below);
+  char reversed[32];
+  int n = 0;
+  for (int i = 0; i < precision; ++i, digits /= 10)
+    reversed[n++] = static_cast<char>('0' + digits % 10);
+  reversed[n++] = '.';
+  do {
+    reversed[n++] = static_cast<char>('0' + digits % 10);
+    digits /= 10;
+  } while (digits > 0);
+  size_t k = 0;
+  if (std::signbit(value)) buffer[k++] = '-';
+  while (n > 0) buffer[k++] = reversed[--n];
+  *length = k;
+  return true;
+}
+
 void AppendNumber(std::string& row, double value, int width, int precision,
                   std::chars_format format) {
   char buffer[64];
+  size_t fixed_length = 0;
+  if (format == std::chars_format::fixed &&
+      FixedByIntegers(value, precision, buffer, &fixed_length)) {
+    const size_t w = static_cast<size_t>(width);
+    if (fixed_length < w) row.append(w - fixed_length, ' ');
+    row.append(buffer, fixed_length);
+    row.push_back(' ');
+    return;
+  }
   const std::to_chars_result r =
       std::to_chars(buffer, buffer + sizeof buffer, value, format, precision);
   std::string wide;

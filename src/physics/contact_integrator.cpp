@@ -133,6 +133,14 @@ class System {
   void SetBranch(bool positive) { positive_branch_ = positive; }
   bool positive_branch() const { return positive_branch_; }
 
+  // The components the right-hand side reads (bit i: component i): not the work (slot 2, a
+  // quadrature), nor tau (slot 0) in the u phases. The stepper may skip the others in its stage
+  // inputs.
+  unsigned StageInputs() const {
+    const unsigned all_but_work = ~(1u << 2);
+    return phase_ == Phase::kMiddle ? all_but_work : all_but_work & ~1u;
+  }
+
   // u^q and q u^(q-1) for the u phases.
   double UPower(double u) const { return IntPow(u, q_); }
   double UPowerSlope(double u) const { return q_ * IntPow(u, q_ - 1); }
@@ -500,7 +508,7 @@ class ContactIntegration {
   bool TryStep() {
     ++run_.steps;
     if (sys_.phase() == Phase::kExit) h_ = std::max(h_, -indep_);  // land on u = 0 exactly
-    stepper_.Step(sys_, x_, f_, indep_, h_, x_new_, f_new_, n_);
+    stepper_.Step(sys_, x_, f_, indep_, h_, x_new_, f_new_, n_, sys_.StageInputs());
     if (!AllFinite(x_new_) || !AllFinite(f_new_)) {
       // Non-finite force at a stage (e.g. a law evaluated out of its domain): smaller step.
       h_ *= 0.25;
@@ -847,7 +855,7 @@ void ContactIntegration<T, N, M>::FinishAtEnd(double t, double t_end) {
   const bool force_zero_end = force_zero_end_;
   State xe = x_new_, fe = f_new_;
   if (t_end > t) {
-    stepper_.Step(sys_, x_, f_, t, t_end - t, xe, fe, n_);
+    stepper_.Step(sys_, x_, f_, t, t_end - t, xe, fe, n_, sys_.StageInputs());
     if (!AllFinite(xe)) {
       xe = x_new_;
       fe = f_new_;
@@ -885,7 +893,7 @@ template <class T, size_t N, class M>
 void ContactIntegration<T, N, M>::RestartOnOtherBranch(double t, double t_w, const State& x_dense) {
   State xw = x_dense, f_minus = f_new_;
   if (t_w > t) {
-    stepper_.Step(sys_, x_, f_, t, t_w - t, xw, f_minus, n_);
+    stepper_.Step(sys_, x_, f_, t, t_w - t, xw, f_minus, n_, sys_.StageInputs());
     if (!AllFinite(xw)) {
       xw = x_dense;
       sys_(xw, f_minus, t_w);

@@ -131,7 +131,7 @@ class Stepper {
   // (unused here: the extension needs no extra stages).
   template <class Sys>
   void Step(const Sys& sys, const State& x, const State& f, double t, double h, State& x1,
-            State& f1, size_t n_active) {
+            State& f1, size_t n_active, unsigned /*stage_inputs: all computed*/ = ~0u) {
     Step(sys, x, f, t, h, x1, f1, err_, n_active);
   }
   double ErrorNorm(const std::array<double, N>& sk, size_t n) const {

@@ -7,16 +7,19 @@
 // own ODEs (ContactDynamics::StateRate). Gravity during the contact is included (g_m_s2); the
 // laws' closed forms neglect it, so pass g_m_s2 = 0 to compare with them.
 //
-// Integration: the Dormand-Prince 5(4) pair with its continuous extension and a PI step
-// controller (physics/dopri5.hpp), on variables scaled to the contact's natural units (time by
-// a contact-time estimate t_c, velocity by v_in, overlap by v_in t_c, energy by m v_in^2 / 2,
-// law state by ContactDynamics::StateScale); the error of a step is the RMS over the scaled
-// variables of err_i / (abs_tolerance + rel_tolerance/4 max(1, |x_i|)) — absolute control in
-// the contact's own units (the factor 1/4 keeps every law's errors at a given rel_tolerance at
-// or below those of the previous integrator: bench_simulate). The first step is a fixed
-// fraction of the contact (0.5 (rel_tolerance/4)^(1/5) of it), not a blind guess. Errors of
-// e and of the contact time fall in proportion to rel_tolerance
-// (tests/contact_integrator_test.cpp: about 2-3 rel_tolerance per contact for every law).
+// Integration: an embedded Runge-Kutta pair with its continuous extension and a PI step
+// controller — DOP853 (order 8, dense output of order 7: physics/dop853.hpp) at
+// rel_tolerance <= 1e-7, where it needs a third of the steps, the Dormand-Prince 5(4) pair
+// (physics/dopri5.hpp) above (ContactRunOptions::method forces either) — on variables scaled
+// to the contact's natural units (time by a contact-time estimate t_c, velocity by v_in,
+// overlap by v_in t_c, energy by m v_in^2 / 2, law state by ContactDynamics::StateScale); the
+// error of a step is measured over the scaled variables against abs_tolerance + s
+// rel_tolerance max(1, |x_i|) — absolute control in the contact's own units (s = 1/4 for
+// dopri5, 0.15 for DOP853: every law's errors at a given rel_tolerance stay at or below those
+// of the previous integrator: bench_simulate). The first step is a fixed fraction of the
+// contact (for dopri5 0.5 (rel_tolerance/4)^(1/5) of it), not a blind guess. Errors of e and
+// of the contact time fall in proportion to rel_tolerance (tests/contact_integrator_test.cpp:
+// at most about 2-3 rel_tolerance per contact for every law).
 // Three phases, so that every step sees a smooth solution:
 //   - approach: forces like delta^(3/2) and delta^(1/4) delta' are not smooth in time at first
 //     touch (t^(1/4): step sizes collapse there). The law says in which root of delta it is

@@ -55,6 +55,103 @@ TEST(Onsets, WhiteningReturnsTheDrivingNoiseOfAnArProcess) {
   EXPECT_NEAR(std::sqrt(xx / yy), 1.0, 0.02);  // same power as the driving noise
 }
 
+// The whitening as it is defined (Whiten's comments): per 4096-sample block and lag, eight float
+// partial sums (lane k mod 8) then their sum in double after the block's tail products; the
+// blocks' sums added in block order; the prediction error filter one tap at a time in float.
+// Whiten computes the same operations in another order of independent work (several lags, and
+// outputs, per pass): it must give the same floats.
+std::vector<float> ReferenceWhiten(const std::vector<float>& x, int order) {
+  const std::size_t n = x.size(), lags = static_cast<std::size_t>(order) + 1, block = 4096;
+  std::vector<double> r(lags, 0.0);
+  for (std::size_t s = 0; s < n; s += block) {
+    const std::size_t e = std::min(n, s + block);
+    for (std::size_t l = 0; l < lags; ++l) {
+      const std::size_t i0 = std::max(s, l);
+      if (i0 >= e) continue;
+      const std::size_t m = e - i0, m8 = m & ~std::size_t{7};
+      float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+      for (std::size_t k = 0; k < m8; ++k) acc[k % 8] += x[i0 + k] * x[i0 + k - l];
+      double total = 0.0;
+      for (std::size_t k = m8; k < m; ++k) total += static_cast<double>(x[i0 + k]) * x[i0 + k - l];
+      for (float v : acc) total += v;
+      r[l] += total;
+    }
+  }
+  r[0] *= 1.0 + 1e-6;
+  const std::vector<double> a = LevinsonDurbin(r, order);
+  std::vector<float> out(x);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 1; j < a.size() && j <= i; ++j)
+      out[i] += static_cast<float>(a[j]) * x[i - j];
+  return out;
+}
+
+TEST(Onsets, WhitenIsTheDefinedFilterToTheBit) {
+  // A ringing resonance plus clicks and noise, lengths that leave partial blocks, any threads.
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (std::size_t n : {std::size_t{300}, std::size_t{4096 * 3 + 77}, std::size_t{50001}}) {
+    std::vector<float> x(n);
+    double y1 = 0, y2 = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double kick = i % 7919 == 100 ? 0.5 : 0.0;
+      const double y = 1.9 * y1 - 0.95 * y2 + 0.01 * g(rng) + kick;
+      x[i] = static_cast<float>(y);
+      y2 = y1;
+      y1 = y;
+    }
+    for (int order : {8, 48, 51}) {
+      const std::vector<float> ref = ReferenceWhiten(x, order);
+      for (int threads : {1, 2}) {
+        const std::vector<float> w = Whiten(x, order, threads);
+        ASSERT_EQ(w.size(), ref.size());
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < n; ++i) differ += w[i] != ref[i];
+        EXPECT_EQ(differ, 0u) << "n " << n << " order " << order << " threads " << threads;
+      }
+    }
+  }
+}
+
+TEST(Onsets, SlidingSampleSelectsWhatNthElementSelects) {
+  // Windows sliding by a multiple of the stride (kept sorted, values in and out), by other
+  // steps (selected anew), shrinking at the end, with many equal values: the median and the
+  // median absolute deviation equal nth_element's on the window's values.
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> level(0, 40);
+  std::vector<double> v(5000);
+  for (double& x : v) x = 0.25 * level(rng);  // many ties
+  auto nth = [](std::vector<double> a) {
+    if (a.empty()) return 0.0;
+    const auto mid = a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2);
+    std::nth_element(a.begin(), mid, a.end());
+    return *mid;
+  };
+  for (std::size_t stride : {std::size_t{1}, std::size_t{4}}) {
+    for (std::size_t win : {std::size_t{16}, std::size_t{900}, std::size_t{901}}) {
+      SlidingSample s;
+      std::size_t checked = 0;
+      for (std::size_t lo = 0; lo < v.size(); lo += (lo % 3 == 0 ? 112 : 37)) {
+        const std::size_t hi = std::min(v.size(), lo + win);
+        s.Set(v, lo, hi, stride);
+        std::vector<double> ref;
+        for (std::size_t q = lo; q < hi; q += stride) ref.push_back(v[q]);
+        ASSERT_EQ(s.size(), ref.size());
+        const double med = nth(ref);
+        EXPECT_EQ(s.Median(), med) << lo;
+        for (double& x : ref) x = std::fabs(x - med);
+        EXPECT_EQ(s.Mad(med), nth(ref)) << lo;
+        ++checked;
+      }
+      EXPECT_GT(checked, 40u);
+    }
+  }
+  SlidingSample empty;
+  empty.Set(v, 10, 10, 4);
+  EXPECT_EQ(empty.Median(), 0.0);
+  EXPECT_EQ(empty.Mad(0.0), 0.0);
+}
+
 TEST(Onsets, AicFindsAVarianceStep) {
   std::mt19937 rng(5);
   std::normal_distribution<double> g(0.0, 1.0);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <new>
@@ -164,13 +165,57 @@ namespace {
 // The hot loops of Whiten, compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the
 // same float multiplications and additions lane by lane, 8 lanes per instruction instead of 4.
 
+// Eight float lanes (GCC/Clang vector extension): lane-wise IEEE multiplications and additions,
+// one AVX2 register or two SSE2 ones. Loaded from unaligned memory with memcpy.
+typedef float Float8 __attribute__((vector_size(32)));
+#define BOUNCECAL_LOAD8(v, p) std::memcpy(&(v), (p), sizeof(Float8))
+
+// The float partial sums of one lag over [s, e) (i0 = max(s, l)) added up in double: the tail
+// products first, then the eight lanes in order.
+[[gnu::always_inline]] inline double LagTotal(const float* a, const float* b, std::size_t m8,
+                                              std::size_t m, const Float8& acc) {
+  double total = 0.0;
+  for (std::size_t k = m8; k < m; ++k) total += static_cast<double>(a[k]) * b[k];
+  for (int q = 0; q < 8; ++q) total += acc[q];
+  return total;
+}
+
 // r_l over one block [s, e) of x for l in [0, lags): eight independent float partial sums (a
 // block's products are well inside float precision), then summed in double (see Whiten).
-// Lags whose products all lie before the block are left as they are.
+// Lags whose products all lie before the block are left as they are. Lags l <= s all start at
+// s: kAutocorrLags of them run together, so that their sums' additions overlap and share the
+// loads of x[s, e) (one lag alone is a chain of dependent additions): each lag's lanes see the
+// same products in the same order, the same sums to the bit.
+constexpr std::size_t kAutocorrLags = 4;
 BOUNCECAL_AVX2_CLONES
 void BlockAutocorrelation(const float* x, std::size_t s, std::size_t e, std::size_t lags,
                           double* out) {
-  for (std::size_t l = 0; l < lags; ++l) {
+  std::size_t l = 0;
+  if (e > s) {
+    const std::size_t m = e - s, m8 = m & ~std::size_t{7};
+    const float* a = x + s;
+    for (; l + kAutocorrLags <= lags && l + kAutocorrLags - 1 <= s; l += kAutocorrLags) {
+      Float8 acc0 = {}, acc1 = {}, acc2 = {}, acc3 = {};
+      const float* b = a - l;
+      for (std::size_t k = 0; k < m8; k += 8) {
+        Float8 va, v0, v1, v2, v3;
+        BOUNCECAL_LOAD8(va, a + k);
+        BOUNCECAL_LOAD8(v0, b + k);
+        BOUNCECAL_LOAD8(v1, b + k - 1);
+        BOUNCECAL_LOAD8(v2, b + k - 2);
+        BOUNCECAL_LOAD8(v3, b + k - 3);
+        acc0 += va * v0;
+        acc1 += va * v1;
+        acc2 += va * v2;
+        acc3 += va * v3;
+      }
+      out[l] = LagTotal(a, b, m8, m, acc0);
+      out[l + 1] = LagTotal(a, b - 1, m8, m, acc1);
+      out[l + 2] = LagTotal(a, b - 2, m8, m, acc2);
+      out[l + 3] = LagTotal(a, b - 3, m8, m, acc3);
+    }
+  }
+  for (; l < lags; ++l) {
     const std::size_t i0 = std::max(s, l);
     if (i0 >= e) continue;
     const float* __restrict a = x + i0;
@@ -186,13 +231,40 @@ void BlockAutocorrelation(const float* x, std::size_t s, std::size_t e, std::siz
   }
 }
 
-// o[i] += sum_{j >= 1} af[j] x[i - j] for i in [b0, b1) (o holds x there): one pass per tap.
+// o[i] = x[i] + sum_{j >= 1} af[j] x[i - j] for i in [b0, b1) (o holds x there on entry). Where
+// every tap lies inside x (i >= taps - 1) eight groups of eight outputs are summed in registers,
+// tap by tap in order (the same float additions as one pass per tap over o, to the bit, without
+// storing and reloading o per tap); the first taps - 1 samples of x take one pass per tap.
 BOUNCECAL_AVX2_CLONES
 void PredictionErrorBlock(const float* x, const float* af, std::size_t taps, std::size_t b0,
                           std::size_t b1, float* o) {
+  const std::size_t full = std::max(b0, taps > 0 ? taps - 1 : 0);
+  const std::size_t edge = std::min(b1, full);
   for (std::size_t j = 1; j < taps; ++j) {
     const float aj = af[j];
-    for (std::size_t i = std::max(b0, j); i < b1; ++i) o[i] += aj * x[i - j];
+    for (std::size_t i = std::max(b0, j); i < edge; ++i) o[i] += aj * x[i - j];
+  }
+  std::size_t i = std::max(full, b0);
+  constexpr std::size_t kGroup = 64;
+  for (; i + kGroup <= b1; i += kGroup) {
+    Float8 acc[8];
+    for (int q = 0; q < 8; ++q) BOUNCECAL_LOAD8(acc[q], o + i + 8 * q);
+    for (std::size_t j = 1; j < taps; ++j) {
+      const float aj = af[j];
+      const Float8 a8 = {aj, aj, aj, aj, aj, aj, aj, aj};
+      const float* xs = x + i - j;
+      for (int q = 0; q < 8; ++q) {
+        Float8 v;
+        BOUNCECAL_LOAD8(v, xs + 8 * q);
+        acc[q] += a8 * v;
+      }
+    }
+    std::memcpy(o + i, acc, sizeof acc);
+  }
+  for (; i < b1; ++i) {
+    float acc = o[i];
+    for (std::size_t j = 1; j < taps; ++j) acc += af[j] * x[i - j];
+    o[i] = acc;
   }
 }
 
@@ -574,22 +646,76 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   return novelty;
 }
 
-// The threshold at frame c: median + max(threshold_mads MAD, min_novelty_db) of the novelty
-// over the `win` frames around c (every fourth frame).
-double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t c, std::size_t win,
-                                     std::vector<double>* buf_) const {
-  std::vector<double>& buf = *buf_;
-  const std::size_t frames = nov.size();
+void SlidingSample::Set(const std::vector<double>& v, std::size_t lo, std::size_t hi,
+                        std::size_t stride) {
+  stride = std::max<std::size_t>(1, stride);
+  hi = std::max(hi, lo);
+  // The first sampled index at or after `from` on the grid lo + k stride.
+  auto on_grid = [&](std::size_t from) {
+    return from <= lo ? lo : lo + (from - lo + stride - 1) / stride * stride;
+  };
+  bool slide =
+      valid_ && stride == stride_ && lo >= lo_ && hi >= hi_ && lo < hi_ && (lo - lo_) % stride == 0;
+  for (std::size_t q = lo_; slide && q < lo; q += stride) {
+    const auto it = std::lower_bound(sorted_.begin(), sorted_.end(), v[q]);
+    if (it == sorted_.end() || !(*it == v[q]))
+      slide = false;  // not a number: select anew
+    else
+      sorted_.erase(it);
+  }
+  if (slide) {
+    for (std::size_t q = on_grid(hi_); q < hi; q += stride)
+      sorted_.insert(std::upper_bound(sorted_.begin(), sorted_.end(), v[q]), v[q]);
+  } else {
+    sorted_.clear();
+    for (std::size_t q = lo; q < hi; q += stride) sorted_.push_back(v[q]);
+    std::sort(sorted_.begin(), sorted_.end());
+  }
+  lo_ = lo;
+  hi_ = hi;
+  stride_ = stride;
+  valid_ = true;
+}
 
+double SlidingSample::Median() const { return sorted_.empty() ? 0.0 : sorted_[sorted_.size() / 2]; }
+
+double SlidingSample::Mad(double centre) const {
+  if (sorted_.empty()) return 0.0;
+  // |value - centre| grows away from centre on both sides of the sorted values: merge the two
+  // runs (left of the first value >= centre going down, the rest going up) up to the rank.
+  const std::size_t n = sorted_.size(), rank = n / 2;
+  std::size_t right = static_cast<std::size_t>(
+      std::lower_bound(sorted_.begin(), sorted_.end(), centre) - sorted_.begin());
+  std::size_t left = right;  // values [0, left) not taken yet, taken from left - 1 down
+  double d = 0.0;
+  for (std::size_t taken = 0; taken <= rank; ++taken) {
+    const bool has_l = left > 0, has_r = right < n;
+    const double dl = has_l ? std::fabs(sorted_[left - 1] - centre) : 0.0;
+    const double dr = has_r ? std::fabs(sorted_[right] - centre) : 0.0;
+    if (has_l && (!has_r || dl <= dr)) {
+      d = dl;
+      --left;
+    } else {
+      d = dr;
+      ++right;
+    }
+  }
+  return d;
+}
+
+// The threshold at frame c: median + max(threshold_mads MAD, min_novelty_db) of the novelty
+// over the `win` frames around c (every fourth frame). `window` slides from the previous
+// block's frames (SlidingSample: the same median and MAD as selecting from all of them).
+double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t c, std::size_t win,
+                                     SlidingSample* window) const {
+  const std::size_t frames = nov.size();
   const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
   const std::size_t hi = std::min(frames, lo + win);
   // Every fourth frame of the window (~225 values at the default hop): the median and MAD of
   // the background are as good and a quarter of the work.
-  buf.clear();
-  for (std::size_t q = lo; q < hi; q += 4) buf.push_back(nov[q]);
-  const double med = Median(buf);
-  for (double& v : buf) v = std::fabs(v - med);
-  const double mad = 1.4826 * Median(buf);
+  window->Set(nov, lo, hi, 4);
+  const double med = window->Median();
+  const double mad = 1.4826 * window->Mad(med);
   return med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
 }
 
@@ -605,9 +731,9 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
   // Each block's median and MAD are independent: groups of kThresholdPart blocks per thread task.
   ParallelForGroups(ResolveThreads(options_.threads), nblk, kThresholdPart,
                     [&](std::size_t b0, std::size_t b1) {
-                      std::vector<double> buf;
+                      SlidingSample window;
                       for (std::size_t b = b0; b < b1; ++b)
-                        blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &buf);
+                        blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
                     });
   std::vector<double> thr(frames);
   for (std::size_t t = 0; t < frames; ++t) {

@@ -34,6 +34,30 @@ struct Chain {
   double score = 0.0;
 };
 
+// Whether |log u| < t (strict) or <= t, deciding from u alone where the answer is certain: the
+// tracker compares most ratios of candidate pairs (noise among impacts) with bounds they are far
+// outside or inside, and std::log was a third of its time. u is compared with e^t and e^-t
+// widened (or narrowed) by kLogBoundMargin relative: outside the wide interval |log u| exceeds t
+// by ~1e-12, inside the narrow one it falls short by as much, both far more than the rounding of
+// a computed log (an ulp, ~1e-16 near these bounds), so the computed log would answer the same.
+// Between them (and for NaN, 0 or negative u) the log is computed as before.
+constexpr double kLogBoundMargin = 1e-12;
+struct AbsLogBound {
+  double t = 0.0, out_lo = 0.0, out_hi = 0.0, in_lo = 0.0, in_hi = 0.0;
+  explicit AbsLogBound(double bound) : t(bound) {
+    out_lo = std::exp(-t) * (1.0 - kLogBoundMargin);
+    out_hi = std::exp(t) * (1.0 + kLogBoundMargin);
+    in_lo = std::exp(-t) * (1.0 + kLogBoundMargin);
+    in_hi = std::exp(t) * (1.0 - kLogBoundMargin);
+  }
+  bool SurelyOutside(double u) const { return u < out_lo || u > out_hi; }
+  bool Below(double u) const {  // |log u| < t
+    if (SurelyOutside(u)) return false;
+    if (u >= in_lo && u <= in_hi) return true;
+    return std::fabs(std::log(u)) < t;
+  }
+};
+
 // Best chain among candidates[idx] (idx sorted by time). Empty if none qualifies.
 Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
                 const std::vector<double>& w, const TrackOptions& o, double min_mean_weight) {
@@ -48,6 +72,10 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
         20.0 * std::log10(std::max(
                    c[static_cast<std::size_t>(idx[static_cast<std::size_t>(p)])].amplitude, 1e-12));
   const double two_sigma2 = 2.0 * o.ratio_sigma * o.ratio_sigma;
+  const AbsLogBound same_ratio(0.5 * o.ratio_sigma);
+  // Beyond both jump bounds a history's step is neither regular nor irregular: its log is not
+  // needed (AbsLogBound: certain from the ratio alone).
+  const AbsLogBound any_jump(std::max(o.max_log_ratio_jump, o.max_irregular_log_jump));
   for (int kp = 1; kp < m; ++kp) {
     const double tk = c[static_cast<std::size_t>(idx[static_cast<std::size_t>(kp)])].time_s;
     const double wk = w[static_cast<std::size_t>(idx[static_cast<std::size_t>(kp)])];
@@ -74,7 +102,7 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
       int nkeep = 0;
       auto offer = [&](const State& s) {
         for (int q = 0; q < nkeep; ++q)
-          if (std::fabs(std::log(s.ratio / keep_buf[q].ratio)) < 0.5 * o.ratio_sigma) {
+          if (same_ratio.Below(s.ratio / keep_buf[q].ratio)) {
             if (s.score > keep_buf[q].score) keep_buf[q] = s;
             return;
           }
@@ -95,7 +123,11 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
         s.back = prev_id;
         s.len = p.len + 1;
         const bool has_trend = !std::isnan(p.ratio);
-        const double jump = has_trend ? std::log(r / p.ratio) : 0.0;
+        double jump = 0.0;
+        if (has_trend) {
+          const double u = r / p.ratio;
+          jump = any_jump.SurelyOutside(u) ? std::numeric_limits<double>::infinity() : std::log(u);
+        }
         if (r <= o.max_ratio && std::fabs(jump) <= o.max_log_ratio_jump) {
           s.score = p.score + wk - jump * jump / two_sigma2;
           s.ratio = r;
@@ -127,11 +159,9 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
           }
         }
       }
-      std::vector<State> keep(keep_buf, keep_buf + nkeep);
-      keep.push_back(fresh);
-      for (const State& s : keep) {
+      for (int q = 0; q <= nkeep; ++q) {  // the kept extensions, then the fresh start
         ending[static_cast<std::size_t>(kp)].push_back(static_cast<int>(states.size()));
-        states.push_back(s);
+        states.push_back(q < nkeep ? keep_buf[q] : fresh);
       }
     }
   }

@@ -3,8 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 #include <optional>
+#include <type_traits>
 
 #include "avx2_clones.hpp"
 #include "bouncecal/acoustic/onsets.hpp"
@@ -95,6 +97,58 @@ BOUNCECAL_AVX2_CLONES double Dot(const double* a, const float* b, std::size_t n)
   return DotBody(a, b, n);
 }
 
+// Four independent Dot products at once, out[t] = Dot(a[t], b[t], n[t]) to the bit: each keeps
+// its own four partial sums (one 4-lane register) fed in the same order, and its tail and final
+// additions are Dot's; running four side by side overlaps their additions (one Dot alone is a
+// chain of dependent ones). Four-lane vectors of the GCC/Clang vector extension (lane-wise IEEE
+// operations, one AVX2 register or two SSE2 ones).
+typedef double Double4 __attribute__((vector_size(32)));
+typedef float Float4 __attribute__((vector_size(16)));
+template <typename A>
+[[gnu::always_inline]] inline void Dot4Body(const A* const* a, const float* const* b,
+                                            const std::size_t* n, double* out) {
+  std::size_t common = std::min(std::min(n[0], n[1]), std::min(n[2], n[3]));
+  common &= ~std::size_t{3};
+  Double4 s[4] = {};
+  for (std::size_t k = 0; k < common; k += 4)
+    for (int t = 0; t < 4; ++t) {
+      Double4 va, vb;
+      if constexpr (std::is_same_v<A, double>) {
+        std::memcpy(&va, a[t] + k, sizeof va);
+      } else {
+        Float4 fa;
+        std::memcpy(&fa, a[t] + k, sizeof fa);
+        va = __builtin_convertvector(fa, Double4);
+      }
+      Float4 fb;
+      std::memcpy(&fb, b[t] + k, sizeof fb);
+      vb = __builtin_convertvector(fb, Double4);
+      s[t] += va * vb;
+    }
+  for (int t = 0; t < 4; ++t) {
+    double s0 = s[t][0], s1 = s[t][1], s2 = s[t][2], s3 = s[t][3];
+    const A* at = a[t];
+    const float* bt = b[t];
+    std::size_t k = common;
+    for (; k + 4 <= n[t]; k += 4) {
+      s0 += static_cast<double>(at[k]) * static_cast<double>(bt[k]);
+      s1 += static_cast<double>(at[k + 1]) * static_cast<double>(bt[k + 1]);
+      s2 += static_cast<double>(at[k + 2]) * static_cast<double>(bt[k + 2]);
+      s3 += static_cast<double>(at[k + 3]) * static_cast<double>(bt[k + 3]);
+    }
+    for (; k < n[t]; ++k) s0 += static_cast<double>(at[k]) * static_cast<double>(bt[k]);
+    out[t] = (s0 + s1) + (s2 + s3);
+  }
+}
+BOUNCECAL_AVX2_CLONES void Dot4(const float* const* a, const float* const* b, const std::size_t* n,
+                                double* out) {
+  Dot4Body(a, b, n, out);
+}
+BOUNCECAL_AVX2_CLONES void Dot4(const double* const* a, const float* const* b, const std::size_t* n,
+                                double* out) {
+  Dot4Body(a, b, n, out);
+}
+
 // Robust rms (Gaussian: 1.4826 * median |x|) of p[0, n).
 double RobustRms(const float* p, std::size_t n) {
   if (n == 0) return 0.0;
@@ -165,6 +219,19 @@ double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, dou
   // 20 ms window) at a quarter of the work.
   for (long l = lo; l <= hi; l += kNoiseStride) {
     double acc = 0.0;
+    const long l3 = l + 3 * kNoiseStride;  // four positions inside nb at once (Dot4)
+    if (l >= nb.begin && l3 <= hi && l3 + L <= nb.end()) {
+      const double* a[4] = {g.data(), g.data(), g.data(), g.data()};
+      const float* b[4];
+      const std::size_t len[4] = {static_cast<std::size_t>(L), static_cast<std::size_t>(L),
+                                  static_cast<std::size_t>(L), static_cast<std::size_t>(L)};
+      for (int t = 0; t < 4; ++t) b[t] = nb.w.data() + (l + t * kNoiseStride - nb.begin);
+      double d[4];
+      Dot4(a, b, len, d);
+      for (int t = 0; t < 4; ++t) p.push_back(std::fabs(d[t]));
+      l = l3;
+      continue;
+    }
     if (l >= nb.begin && l + L <= nb.end()) {
       acc = Dot(g.data(), nb.w.data() + (l - nb.begin), static_cast<std::size_t>(L));
     } else {
@@ -277,7 +344,18 @@ std::vector<double> NeighbourhoodPredictor(const std::vector<float>& x,
   for (long a : anchors) {
     const long lo = std::max(0L, a - before), hi = std::min(n, a + after);
     if (hi - lo <= 4L * order) continue;
-    for (int lag = 0; lag <= order; ++lag)
+    int lag = 0;
+    for (; lag + 3 <= order; lag += 4) {  // four lags at once (Dot4)
+      const float* pa[4];
+      const float* pb[4] = {x.data() + lo, x.data() + lo, x.data() + lo, x.data() + lo};
+      std::size_t len[4];
+      for (int t = 0; t < 4; ++t) {
+        pa[t] = x.data() + lo + lag + t;
+        len[t] = static_cast<std::size_t>(hi - lo - lag - t);
+      }
+      Dot4(pa, pb, len, rw.data() + lag);
+    }
+    for (; lag <= order; ++lag)
       rw[static_cast<std::size_t>(lag)] =
           Dot(x.data() + lo + lag, x.data() + lo, static_cast<std::size_t>(hi - lo - lag));
     if (!(rw[0] > 0.0)) continue;
@@ -300,7 +378,20 @@ std::vector<float> WhitenSegment(const std::vector<float>& x, const std::vector<
   // Taps reversed, so that the inner product runs forward over x (Dot).
   const std::vector<double> rev(a.rbegin(), a.rend());
   const long taps = static_cast<long>(a.size());
+  const std::size_t nt = static_cast<std::size_t>(taps);
   for (long i = begin; i < end; ++i) {
+    if (i - taps + 1 >= 0 && i + 3 < std::min(n, end)) {  // four outputs at once (Dot4)
+      const double* ar[4] = {rev.data(), rev.data(), rev.data(), rev.data()};
+      const float* b[4];
+      const std::size_t len[4] = {nt, nt, nt, nt};
+      for (long t = 0; t < 4; ++t) b[t] = x.data() + (i + t - taps + 1);
+      double d[4];
+      Dot4(ar, b, len, d);
+      for (long t = 0; t < 4; ++t)
+        out[static_cast<std::size_t>(i + t - begin)] = static_cast<float>(d[t]);
+      i += 3;
+      continue;
+    }
     if (i - taps + 1 >= 0 && i < n) {  // all of the taps inside x
       out[static_cast<std::size_t>(i - begin)] = static_cast<float>(
           Dot(rev.data(), x.data() + (i - taps + 1), static_cast<std::size_t>(taps)));

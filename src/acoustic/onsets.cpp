@@ -17,6 +17,7 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "huge_pages.hpp"
 
 namespace bouncecal {
 namespace {
@@ -55,6 +56,7 @@ struct FloatBuffer {
   std::size_t n = 0;
   void Allocate(std::size_t size) {
     data.reset(new float[size]);
+    AdviseHugePages(data.get(), size * sizeof(float));
     n = size;
   }
   std::size_t size() const { return n; }
@@ -307,7 +309,9 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   const std::vector<double> a = LevinsonDurbin(r, order);
   // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block);
   // every output block depends on x only, so groups of blocks run on the threads.
-  std::vector<float> out(x);
+  std::vector<float> out;
+  ReserveHugePages(&out, n);
+  out.assign(x.begin(), x.end());
   std::vector<float> af(a.size());
   for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
   const std::size_t blk = 2048;
@@ -574,7 +578,11 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
   const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
   const std::size_t ring = lag + kRefFrames;
-  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num(frames, 0.0), den(frames, 0.0);
+  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num, den;
+  ReserveHugePages(&num, frames);
+  ReserveHugePages(&den, frames);
+  num.assign(frames, 0.0);
+  den.assign(frames, 0.0);
   const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
   const int threads = ResolveThreads(options_.threads);
@@ -637,10 +645,14 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
     if (v < 0.0) v = floor_power;
   // A click stays above its reference for the ~lag frames that contain it, a noise peak for
   // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
-  std::vector<double> raw_db(frames);
+  std::vector<double> raw_db;
+  ReserveHugePages(&raw_db, frames);
+  raw_db.resize(frames);
   for (std::size_t t = 0; t < frames; ++t)
     raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
-  std::vector<double> novelty(frames, 0.0);
+  std::vector<double> novelty;
+  ReserveHugePages(&novelty, frames);
+  novelty.assign(frames, 0.0);
   for (std::size_t t = 1; t + 1 < frames; ++t)
     novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
   return novelty;
@@ -735,7 +747,9 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
                       for (std::size_t b = b0; b < b1; ++b)
                         blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
                     });
-  std::vector<double> thr(frames);
+  std::vector<double> thr;
+  ReserveHugePages(&thr, frames);
+  thr.resize(frames);
   for (std::size_t t = 0; t < frames; ++t) {
     const double pos =
         (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);

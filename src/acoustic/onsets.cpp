@@ -668,17 +668,40 @@ void SlidingSample::Set(const std::vector<double>& v, std::size_t lo, std::size_
   };
   bool slide =
       valid_ && stride == stride_ && lo >= lo_ && hi >= hi_ && lo < hi_ && (lo - lo_) % stride == 0;
-  for (std::size_t q = lo_; slide && q < lo; q += stride) {
-    const auto it = std::lower_bound(sorted_.begin(), sorted_.end(), v[q]);
-    if (it == sorted_.end() || !(*it == v[q]))
-      slide = false;  // not a number: select anew
-    else
-      sorted_.erase(it);
-  }
   if (slide) {
-    for (std::size_t q = on_grid(hi_); q < hi; q += stride)
-      sorted_.insert(std::upper_bound(sorted_.begin(), sorted_.end(), v[q]), v[q]);
-  } else {
+    // One merge pass: the kept values in order, minus the ones that left, plus the ones that
+    // came (both sorted). A value that left must be among the kept ones (NaN is not).
+    leaving_.clear();
+    for (std::size_t q = lo_; q < lo; q += stride) leaving_.push_back(v[q]);
+    coming_.clear();
+    for (std::size_t q = on_grid(hi_); q < hi; q += stride) coming_.push_back(v[q]);
+    std::sort(leaving_.begin(), leaving_.end());
+    std::sort(coming_.begin(), coming_.end());
+    merged_.clear();
+    std::size_t a = 0, l = 0, c = 0;
+    const std::size_t na = sorted_.size(), nl = leaving_.size(), nc = coming_.size();
+    while (a < na) {
+      const double x = sorted_[a];
+      if (l < nl && leaving_[l] == x) {  // one copy leaves
+        ++l;
+        ++a;
+      } else if (l < nl && !(leaving_[l] > x)) {
+        break;  // a leaving value not among the kept ones (NaN): select anew
+      } else if (c < nc && coming_[c] < x) {
+        merged_.push_back(coming_[c++]);
+      } else {
+        merged_.push_back(x);
+        ++a;
+      }
+    }
+    slide = a == na && l == nl;
+    if (slide) {
+      merged_.insert(merged_.end(), coming_.begin() + static_cast<std::ptrdiff_t>(c),
+                     coming_.end());
+      sorted_.swap(merged_);
+    }
+  }
+  if (!slide) {
     sorted_.clear();
     for (std::size_t q = lo; q < hi; q += stride) sorted_.push_back(v[q]);
     std::sort(sorted_.begin(), sorted_.end());

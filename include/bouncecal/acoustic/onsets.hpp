@@ -132,6 +132,7 @@ class SlidingSample {
 
  private:
   std::vector<double> sorted_;
+  std::vector<double> leaving_, coming_, merged_;  // scratch of a slide
   std::size_t lo_ = 0, hi_ = 0, stride_ = 0;
   bool valid_ = false;
 };

@@ -8,6 +8,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <new>
@@ -458,27 +459,31 @@ struct OnsetDetector::Correlator {
   Correlator(const Correlator&) = delete;
   Correlator& operator=(const Correlator&) = delete;
 
-  // out[i] = sum_j h[j] x[i + j] for i in [0, x.size()), x zero beyond its end. The
-  // overlap-save blocks are independent: groups of kCorrelatePart of them run on `threads`.
-  void Correlate(const std::vector<float>& x, const std::vector<double>& h, FloatBuffer* result,
-                 int threads) const {
-    const std::size_t nn = static_cast<std::size_t>(n), m = h.size(), nb = nn / 2 + 1;
-    assert(m < nn / 2);
-    FftArrays tf(nn);
-    std::fill(tf.real, tf.real + nn, 0.0);
-    for (std::size_t j = 0; j < m; ++j) tf.real[j] = h[j];
-    fftw_execute_dft_r2c(fwd, tf.real, tf.spec);
-    const fftw_complex* tspec = tf.spec;
+  // The spectrum of the template h (zero-padded to the FFT size), which Correlate multiplies.
+  void TemplateSpectrum(const std::vector<double>& h, FftArrays* tf) const {
+    const std::size_t nn = static_cast<std::size_t>(n);
+    assert(h.size() < nn / 2);
+    std::fill(tf->real, tf->real + nn, 0.0);
+    std::copy(h.begin(), h.end(), tf->real);
+    fftw_execute_dft_r2c(fwd, tf->real, tf->spec);
+  }
+
+  // out[i - lo] = sum_j h[j] x[i + j] for i in [lo, hi), x zero beyond its end (tspec: the
+  // TemplateSpectrum of h, m = h.size()), from the overlap-save blocks of the whole x that hold
+  // them: block bi gives [bi step, (bi + 1) step), each the same computation wherever the range
+  // starts. The blocks are independent: groups of kCorrelatePart of them run on `threads`.
+  void Correlate(const std::vector<float>& x, const fftw_complex* tspec, std::size_t m,
+                 std::size_t lo, std::size_t hi, float* out, int threads) const {
+    const std::size_t nn = static_cast<std::size_t>(n), nb = nn / 2 + 1;
     const std::size_t step = nn - m + 1;  // valid outputs per block
-    FloatBuffer& out = *result;
-    out.Allocate(x.size());
     const double scale = 1.0 / static_cast<double>(nn);
-    const std::size_t blocks = (x.size() + step - 1) / step;
+    if (hi <= lo) return;
+    const std::size_t first = lo / step, blocks = (hi - 1) / step + 1 - first;
     auto part = [&](std::size_t b0, std::size_t b1) {
       FftArrays a(nn);
       double* buf = a.real;
       fftw_complex* spec = a.spec;
-      for (std::size_t bi = b0; bi < b1; ++bi) {
+      for (std::size_t bi = first + b0; bi < first + b1; ++bi) {
         const std::size_t b = bi * step;
         const std::size_t len = std::min(nn, x.size() - b);
         for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
@@ -491,8 +496,8 @@ struct OnsetDetector::Correlator {
           spec[k][1] = im;
         }
         fftw_execute_dft_c2r(inv, spec, buf);
-        const std::size_t valid = std::min(step, x.size() - b);
-        for (std::size_t i = 0; i < valid; ++i) out[b + i] = static_cast<float>(buf[i] * scale);
+        const std::size_t i0 = std::max(b, lo), i1 = std::min({b + step, hi, x.size()});
+        for (std::size_t i = i0; i < i1; ++i) out[i - lo] = static_cast<float>(buf[i - b] * scale);
       }
     };
     ParallelForGroups(threads, blocks, kCorrelatePart, part);
@@ -916,69 +921,164 @@ Impact OnsetDetector::Refine(const std::vector<float>& x, const OnsetResult& res
   return imp;
 }
 
-// The template and its normalised cross-correlation with the whole whitened signal.
+// The template, and its normalised cross-correlation with the whitened signal, computed a chunk
+// at a time: the correlation xc[i] = sum_j h[j] w[i + j] and the energy under the template
+// ww[i] = sum of w^2 over [i, min(n, i + tl)) of every template start i. Both were whole-block
+// float arrays (46 MB for a 2-minute block at 48 kHz, 40 % of the detection's memory, all of it
+// first touched per block); a chunk holds kNccChunk starts, and each value is computed the same
+// way wherever the chunk starts (xc from the overlap-save block of the whole signal that holds
+// it, ww from its kEnergyRestart stretch), so the values are the same to the bit.
+constexpr std::size_t kNccChunk = 32 * kEnergyRestart;
+constexpr std::size_t kNccChunksKept = 4;
+
 struct OnsetDetector::TemplateMatch {
-  FloatBuffer xc;  // sum_j h[j] w[i + j]
-  FloatBuffer ww;  // energy of w under the template at each start
   double hh = 0.0;
   long ref_start = 0;  // template start sample
   double t_ref = 0.0;  // its onset time (AIC pick of the strongest onset)
   long lead = 0;       // samples from the template start to its onset
-  double Ncc(std::size_t i) const {
-    const double e = ww[i];
-    return e > 0.0 ? static_cast<double>(xc[i]) / std::sqrt(hh * e) : 0.0;
-  }
+  long n = 0;          // template starts (samples of the whitened signal)
+};
+
+// NCC values of one stretch of template starts [begin, begin + xc.size()), kept for later.
+struct OnsetDetector::NccWindow {
+  long begin = 0;
+  std::vector<float> xc, ww;
 };
 
 namespace {
 
-// ww[i] = sum of w^2 over [i, min(n, i + tl)) for i in [b, e): exact at b, then running.
+// ww[i - base] = sum of w^2 over [i, min(n, i + tl)) for i in [b, e): exact at b, then running.
 void RunningEnergy(const std::vector<float>& w, std::size_t tl, std::size_t b, std::size_t e,
-                   FloatBuffer* ww_out) {
+                   std::size_t base, float* ww) {
   const std::size_t n = w.size();
-  FloatBuffer& ww = *ww_out;
-  {
-    double run = 0.0;
-    for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
-    ww[b] = static_cast<float>(run);
-    const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
-    std::size_t i = b + 1;
-    for (; i < e_in; ++i) {
-      const double in_v = w[i + tl - 1], out_v = w[i - 1];
-      run += in_v * in_v - out_v * out_v;
-      ww[i] = static_cast<float>(std::max(run, 0.0));
-    }
-    for (; i < e; ++i) {
-      const double out_v = w[i - 1];
-      run -= out_v * out_v;
-      ww[i] = static_cast<float>(std::max(run, 0.0));
-    }
+  double run = 0.0;
+  for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
+  ww[b - base] = static_cast<float>(run);
+  const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
+  std::size_t i = b + 1;
+  for (; i < e_in; ++i) {
+    const double in_v = w[i + tl - 1], out_v = w[i - 1];
+    run += in_v * in_v - out_v * out_v;
+    ww[i - base] = static_cast<float>(std::max(run, 0.0));
+  }
+  for (; i < e; ++i) {
+    const double out_v = w[i - 1];
+    run -= out_v * out_v;
+    ww[i - base] = static_cast<float>(std::max(run, 0.0));
   }
 }
 
 // RunningEnergy on the four whole stretches starting at b, b + kEnergyRestart, ... (all of
 // w[i + tl - 1] inside w): the same operations per stretch, interleaved, so that the four
 // running sums' additions overlap (one sum alone is a chain of dependent additions).
-void RunningEnergy4(const std::vector<float>& w, std::size_t tl, std::size_t b,
-                    FloatBuffer* ww_out) {
-  FloatBuffer& ww = *ww_out;
+void RunningEnergy4(const std::vector<float>& w, std::size_t tl, std::size_t b, std::size_t base,
+                    float* ww) {
   double run[4];
   for (std::size_t q = 0; q < 4; ++q) {
     const std::size_t bq = b + q * kEnergyRestart;
     run[q] = 0.0;
     for (std::size_t j = bq; j < bq + tl; ++j) run[q] += static_cast<double>(w[j]) * w[j];
-    ww[bq] = static_cast<float>(run[q]);
+    ww[bq - base] = static_cast<float>(run[q]);
   }
   for (std::size_t i = 1; i < kEnergyRestart; ++i)
     for (std::size_t q = 0; q < 4; ++q) {
       const std::size_t at = b + q * kEnergyRestart + i;
       const double in_v = w[at + tl - 1], out_v = w[at - 1];
       run[q] += in_v * in_v - out_v * out_v;
-      ww[at] = static_cast<float>(std::max(run[q], 0.0));
+      ww[at - base] = static_cast<float>(std::max(run[q], 0.0));
     }
 }
 
 }  // namespace
+
+// The chunks of xc and ww, computed on demand and kept (the kNccChunksKept used last): the
+// template pass reads them in time order, so each is computed once.
+struct OnsetDetector::NccChunks {
+  const Correlator& corr;
+  const std::vector<float>& w;
+  const std::vector<double>& h;
+  double hh;
+  int threads;
+  FftArrays tf;  // the template's spectrum
+  struct Chunk {
+    long index = -1;
+    unsigned long used = 0;
+    FloatBuffer xc, ww;
+  };
+  Chunk kept[kNccChunksKept];
+  unsigned long clock = 0;
+
+  NccChunks(const Correlator& c, const std::vector<float>& whitened, const std::vector<double>& tpl,
+            double tpl_energy, int n_threads)
+      : corr(c),
+        w(whitened),
+        h(tpl),
+        hh(tpl_energy),
+        threads(n_threads),
+        tf(static_cast<std::size_t>(c.n)) {
+    corr.TemplateSpectrum(h, &tf);
+  }
+
+  const Chunk& Get(std::size_t index) {
+    Chunk* slot = &kept[0];
+    for (Chunk& c : kept) {
+      if (c.index == static_cast<long>(index)) {
+        c.used = ++clock;
+        return c;
+      }
+      if (c.used < slot->used) slot = &c;
+    }
+    Compute(index, slot);
+    slot->used = ++clock;
+    return *slot;
+  }
+
+  void Compute(std::size_t index, Chunk* c) {
+    const std::size_t n = w.size(), tl = h.size();
+    const std::size_t lo = index * kNccChunk, hi = std::min(n, lo + kNccChunk);
+    if (c->xc.size() < kNccChunk) {
+      c->xc.Allocate(kNccChunk);
+      c->ww.Allocate(kNccChunk);
+    }
+    c->index = static_cast<long>(index);
+    corr.Correlate(w, tf.spec, tl, lo, hi, c->xc.data.get(), threads);
+    // The energy's running sum is recomputed exactly every kEnergyRestart samples, so rounding
+    // cannot accumulate; the restarts make the stretches independent (kNccChunk is a multiple):
+    // groups of kEnergyPart of them on the threads, four whole ones at a time where they fit.
+    const std::size_t s0 = lo / kEnergyRestart, s1 = (hi + kEnergyRestart - 1) / kEnergyRestart;
+    float* ww = c->ww.data.get();
+    ParallelForGroups(threads, s1 - s0, kEnergyPart, [&](std::size_t g0, std::size_t g1) {
+      std::size_t b = (s0 + g0) * kEnergyRestart;
+      const std::size_t end = (s0 + g1) * kEnergyRestart;
+      for (; b + 4 * kEnergyRestart <= end && b + 4 * kEnergyRestart + tl <= n + 1;
+           b += 4 * kEnergyRestart)
+        RunningEnergy4(w, tl, b, lo, ww);
+      for (; b < end; b += kEnergyRestart)
+        RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), lo, ww);
+    });
+  }
+
+  double Ncc(std::size_t i) {
+    const Chunk& c = Get(i / kNccChunk);
+    const std::size_t k = i - static_cast<std::size_t>(c.index) * kNccChunk;
+    const double e = c.ww[k];
+    return e > 0.0 ? static_cast<double>(c.xc[k]) / std::sqrt(hh * e) : 0.0;
+  }
+
+  // xc and ww over [a, b] (inclusive, inside [0, n)), for later.
+  void Keep(long a, long b, NccWindow* out) {
+    out->begin = a;
+    out->xc.resize(static_cast<std::size_t>(b - a + 1));
+    out->ww.resize(out->xc.size());
+    for (long i = a; i <= b; ++i) {
+      const std::size_t u = static_cast<std::size_t>(i);
+      const Chunk& c = Get(u / kNccChunk);
+      const std::size_t k = u - static_cast<std::size_t>(c.index) * kNccChunk;
+      out->xc[static_cast<std::size_t>(i - a)] = c.xc[k];
+      out->ww[static_cast<std::size_t>(i - a)] = c.ww[k];
+    }
+  }
+};
 
 bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
   const std::vector<float>& w = res->whitened;
@@ -1000,29 +1100,12 @@ bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
   res->template_start = m->ref_start;
   res->template_onset_s = res->onsets[strongest].time_s;
   m->t_ref = res->onsets[strongest].time_s;
-  corr_->Correlate(w, h, &m->xc, ResolveThreads(options_.threads));
-  // Energy of w under the template at each start: ww[i] = sum of w^2 over [i, min(n, i + tl)),
-  // a running sum (float storage: half the memory of double prefix sums, which dominated the
-  // allocation cost), recomputed exactly every 8192 samples so rounding cannot accumulate.
-  // The restarts make the stretches independent: groups of kEnergyPart of them on the threads.
-  m->ww.Allocate(n);
-  const std::size_t stretches = (n + kEnergyRestart - 1) / kEnergyRestart;
-  auto energy_part = [&](std::size_t part) {
-    const std::size_t s1 = std::min(stretches, (part + 1) * kEnergyPart);
-    std::size_t b = part * kEnergyPart * kEnergyRestart;
-    // Four whole stretches at a time where they fit, then one by one.
-    for (; b + 4 * kEnergyRestart <= s1 * kEnergyRestart && b + 4 * kEnergyRestart + tl <= n + 1;
-         b += 4 * kEnergyRestart)
-      RunningEnergy4(w, tl, b, &m->ww);
-    for (; b < s1 * kEnergyRestart; b += kEnergyRestart)
-      RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), &m->ww);
-  };
-  ParallelFor(ResolveThreads(options_.threads), (stretches + kEnergyPart - 1) / kEnergyPart,
-              energy_part);
+  m->n = static_cast<long>(n);
   return true;
 }
 
-void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, Impact* im) const {
+void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, const std::function<double(long)>& ncc,
+                                     long lo, long hi, Impact* im) const {
   // The impacts of one ball on one plate have the same waveform up to level, so the
   // cross-correlation lag to the template times them relative to the template's own onset far
   // more consistently than an AIC pick on each: the AIC moves with the level (it finds the first
@@ -1032,7 +1115,7 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
   // scatter by 1-5 us (tools/bench_detect). Every impact with a clear match
   // (NCC >= template_timing_ncc) is therefore timed by the template. t_guess: the AIC pick;
   // [lo, hi]: template starts the AIC window allowed (the pick can land anywhere in it).
-  const long n = static_cast<long>(m.ww.size());
+  const long n = m.n;
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
   const long s0 = std::lround(im->time_s * rate_hz_) - m.lead;
   // Best NCC within +-maxlag of the guess; a farther one (in the AIC window or 2 maxlag around
@@ -1042,7 +1125,7 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
   const long from = std::max(1L, std::min(lo, s0 - 2 * maxlag));
   const long to = std::min(n - 2, std::max(hi, s0 + 2 * maxlag));
   for (long l = from; l <= to; ++l) {
-    const double c = m.Ncc(static_cast<std::size_t>(l));
+    const double c = ncc(l);
     const bool near = std::labs(l - s0) <= maxlag;
     if (near && c > best_c) {
       best_c = c;
@@ -1058,8 +1141,8 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
     best_l = far_l;
   }
   if (best_c < options_.template_timing_ncc || best_l < 1) return;
-  const double cm = m.Ncc(static_cast<std::size_t>(best_l - 1));
-  const double cp = m.Ncc(static_cast<std::size_t>(best_l + 1));
+  const double cm = ncc(best_l - 1);
+  const double cp = ncc(best_l + 1);
   const double curv = cm - 2.0 * best_c + cp;
   const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
   im->time_s = m.t_ref + (static_cast<double>(best_l - m.ref_start) + d) / rate_hz_;
@@ -1072,45 +1155,100 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
                  std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_));
 }
 
-void OnsetDetector::BlindTemplateSearch(const std::vector<float>& x, const TemplateMatch& m,
-                                        OnsetResult* res) const {
+// Template starts TimeWithTemplate reads for an impact at time_s ([lo, hi]: as it is given):
+// [from - 1, to + 1] inside [0, n).
+std::pair<long, long> OnsetDetector::TimingStarts(const TemplateMatch& m, long lo, long hi,
+                                                  double time_s) const {
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  const long s0 = std::lround(time_s * rate_hz_) - m.lead;
+  const long from = std::max(1L, std::min(lo, s0 - 2 * maxlag));
+  const long to = std::min(m.n - 2, std::max(hi, s0 + 2 * maxlag));
+  return {std::max(0L, from - 1), std::min(m.n - 1, to + 1)};
+}
+
+// A start where the NCC with the template reaches the blind search's threshold (the best of
+// its run), and the NCC around it that timing it will read.
+struct OnsetDetector::BlindCandidate {
+  std::size_t start = 0;
+  double ncc = 0.0;
+  NccWindow window;
+};
+
+void OnsetDetector::BlindScan(const TemplateMatch& m, NccChunks* chunks, std::size_t chunk,
+                              std::vector<BlindCandidate>* found) const {
   // Onsets the flux missed (late impacts on top of ringing): starts where the NCC with the
-  // template reaches template_threshold, away from the known onsets.
-  std::vector<double> known;
-  for (const Impact& im : res->onsets) known.push_back(im.time_s);
-  std::sort(known.begin(), known.end());
-  const std::size_t n = m.ww.size();
+  // template reaches template_threshold; runs closer than min_gap_s keep their best start.
+  const std::size_t n = static_cast<std::size_t>(m.n);
   const std::size_t tl = static_cast<std::size_t>(template_len_);
   const std::size_t gap_s = static_cast<std::size_t>(options_.min_gap_s * rate_hz_);
   // The NCC of a template of L samples with white noise has a standard deviation of about
   // 1/sqrt(L): ask for 4 of those at least, so short templates (low rates) stay selective.
   const double ncc_min =
       std::max(options_.template_threshold, 4.0 / std::sqrt(static_cast<double>(tl)));
-  std::vector<std::pair<std::size_t, double>> found;  // (start sample, ncc)
   const double k2 = ncc_min * ncc_min * m.hh;
-  for (std::size_t i = 1; i + tl < n; ++i) {
+  // The starts Refine's tight AIC window and TimeWithTemplate may read around a candidate
+  // (TimingStarts of any time the window can give, with a margin); beyond them the chunks answer.
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  const long nw = window_;
+  const long pre = std::max(nw, static_cast<long>(options_.aic_pre_s * rate_hz_));
+  const long post = std::max(nw / 2, static_cast<long>(options_.aic_post_s * rate_hz_));
+  const long before = std::max(16L, pre / 3) + 2 * maxlag + 8;
+  const long after = std::max(8L, post / 2) + 2 * maxlag + 8;
+  auto keep = [&](BlindCandidate* f) {
+    const long i = static_cast<long>(f->start);
+    chunks->Keep(std::max(0L, i - before), std::min(m.n - 1, i + after), &f->window);
+  };
+  const NccChunks::Chunk& c = chunks->Get(chunk);
+  const std::size_t base = chunk * kNccChunk;
+  const std::size_t i1 = std::min(base + kNccChunk, n > tl ? n - tl : 0);  // i + tl < n
+  for (std::size_t i = std::max<std::size_t>(1, base); i < i1; ++i) {
     // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt, one branch).
-    const double c_i = m.xc[i];
-    if (!(c_i > 0.0) | (c_i * c_i < k2 * static_cast<double>(m.ww[i]))) continue;
-    const double c = m.Ncc(i);
-    if (!found.empty() && i - found.back().first <= gap_s) {
-      if (c > found.back().second) found.back() = {i, c};
+    const double c_i = c.xc[i - base];
+    const double e = c.ww[i - base];
+    if (!(c_i > 0.0) | (c_i * c_i < k2 * e)) continue;
+    const double ncc = e > 0.0 ? c_i / std::sqrt(m.hh * e) : 0.0;
+    if (!found->empty() && i - found->back().start <= gap_s) {
+      if (ncc > found->back().ncc) {
+        found->back().start = i;
+        found->back().ncc = ncc;
+        keep(&found->back());
+      }
       continue;
     }
-    found.push_back({i, c});
+    found->push_back({i, ncc, {}});
+    keep(&found->back());
   }
+}
+
+void OnsetDetector::AddBlindCandidates(const std::vector<float>& x, const TemplateMatch& m,
+                                       NccChunks* chunks, const std::vector<BlindCandidate>& found,
+                                       OnsetResult* res) const {
+  // Candidates away from the known onsets (timed by the template already) become onsets.
+  std::vector<double> known;
+  for (const Impact& im : res->onsets) known.push_back(im.time_s);
+  std::sort(known.begin(), known.end());
   const std::size_t before = res->onsets.size();
   const std::size_t lead = static_cast<std::size_t>(m.lead);
-  for (const auto& [i, c] : found) {
-    const double t = static_cast<double>(i + lead) / rate_hz_;
+  for (const BlindCandidate& f : found) {
+    const double t = static_cast<double>(f.start + lead) / rate_hz_;
     auto it = std::lower_bound(known.begin(), known.end(), t);
     const bool near_known = (it != known.end() && *it - t < options_.min_gap_s) ||
                             (it != known.begin() && t - *(it - 1) < options_.min_gap_s);
     if (near_known) continue;
-    Impact imp = Refine(x, *res, i + lead, true);
-    imp.score = std::clamp(c, 0.0, 1.0);
-    const long s0 = static_cast<long>(i);
-    TimeWithTemplate(m, s0, s0, &imp);
+    Impact imp = Refine(x, *res, f.start + lead, true);
+    imp.score = std::clamp(f.ncc, 0.0, 1.0);
+    const long s0 = static_cast<long>(f.start);
+    const NccWindow& v = f.window;
+    const double hh = m.hh;
+    auto ncc = [&](long l) {
+      const long k = l - v.begin;
+      if (k < 0 || k >= static_cast<long>(v.xc.size()))
+        return chunks->Ncc(static_cast<std::size_t>(l));
+      const double e = v.ww[static_cast<std::size_t>(k)];
+      return e > 0.0 ? static_cast<double>(v.xc[static_cast<std::size_t>(k)]) / std::sqrt(hh * e)
+                     : 0.0;
+    };
+    TimeWithTemplate(m, ncc, s0, s0, &imp);
     res->onsets.push_back(imp);
   }
   if (res->onsets.size() != before)
@@ -1123,21 +1261,44 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
   // The impacts of one ball on one plate look alike: the whitened waveform of the strongest
   // onset is the template; its NCC with the whole whitened signal (FFT overlap-save) scores
   // every onset (Impact::score), times the clear matches and finds impacts the flux missed.
+  // The NCC is computed chunk by chunk in time order (NccChunks); each onset is scored and
+  // timed once the chunk holding the last start it reads is there, each chunk searched blind.
   if (res->onsets.empty()) return;
   TemplateMatch m;
   if (!BuildTemplate(res, &m)) return;
-  const long n = static_cast<long>(m.ww.size());
+  NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh,
+                   ResolveThreads(options_.threads));
+  auto live = [&](long l) { return chunks.Ncc(static_cast<std::size_t>(l)); };
+  const long n = m.n;
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
-  for (Impact& im : res->onsets) {
+  std::vector<Impact>& onsets = res->onsets;
+  auto last_start = [&](std::size_t k) {
+    const long s0 = std::lround(onsets[k].time_s * rate_hz_) - m.lead;
+    return std::max(
+        s0 + maxlag,
+        TimingStarts(m, window_lo[k] - m.lead, window_hi[k] - m.lead, onsets[k].time_s).second);
+  };
+  auto score_and_time = [&](std::size_t k) {
+    Impact& im = onsets[k];
     const long s0 = std::lround(im.time_s * rate_hz_) - m.lead;
     double best = 0.0;
     for (long l = std::max(0L, s0 - maxlag); l <= s0 + maxlag && l < n; ++l)
-      best = std::max(best, m.Ncc(static_cast<std::size_t>(l)));
+      best = std::max(best, live(l));
     im.score = std::clamp(best, 0.0, 1.0);
+    TimeWithTemplate(m, live, window_lo[k] - m.lead, window_hi[k] - m.lead, &im);
+  };
+  const bool blind = options_.template_threshold < 1.0;
+  std::vector<BlindCandidate> found;
+  std::size_t next = 0;
+  const std::size_t nchunks = (static_cast<std::size_t>(n) + kNccChunk - 1) / kNccChunk;
+  for (std::size_t c = 0; c < nchunks; ++c) {
+    const long chunk_end =
+        static_cast<long>(std::min((c + 1) * kNccChunk, static_cast<std::size_t>(n)));
+    for (; next < onsets.size() && last_start(next) < chunk_end; ++next) score_and_time(next);
+    if (blind) BlindScan(m, &chunks, c, &found);
   }
-  for (std::size_t i = 0; i < res->onsets.size(); ++i)
-    TimeWithTemplate(m, window_lo[i] - m.lead, window_hi[i] - m.lead, &res->onsets[i]);
-  if (options_.template_threshold < 1.0) BlindTemplateSearch(x, m, res);
+  for (; next < onsets.size(); ++next) score_and_time(next);
+  if (blind) AddBlindCandidates(x, m, &chunks, found, res);
 }
 
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,

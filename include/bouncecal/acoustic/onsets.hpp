@@ -28,8 +28,10 @@
 // intervals. An OnsetDetector is not thread-safe; use one per thread.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bouncecal/acoustic/detect.hpp"
@@ -164,12 +166,20 @@ class OnsetDetector {
                 bool tight) const;
   // 5. Template pass: build, score, time the clear matches, search blind.
   struct TemplateMatch;
+  struct NccWindow;
+  struct NccChunks;
+  struct BlindCandidate;
   void TemplatePass(const std::vector<float>& samples, const std::vector<long>& window_lo,
                     const std::vector<long>& window_hi, OnsetResult* res) const;
   bool BuildTemplate(OnsetResult* res, TemplateMatch* m) const;
-  void TimeWithTemplate(const TemplateMatch& m, long lo, long hi, Impact* im) const;
-  void BlindTemplateSearch(const std::vector<float>& samples, const TemplateMatch& m,
-                           OnsetResult* res) const;
+  std::pair<long, long> TimingStarts(const TemplateMatch& m, long lo, long hi, double time_s) const;
+  void TimeWithTemplate(const TemplateMatch& m, const std::function<double(long)>& ncc, long lo,
+                        long hi, Impact* im) const;
+  void BlindScan(const TemplateMatch& m, NccChunks* chunks, std::size_t chunk,
+                 std::vector<BlindCandidate>* found) const;
+  void AddBlindCandidates(const std::vector<float>& samples, const TemplateMatch& m,
+                          NccChunks* chunks, const std::vector<BlindCandidate>& found,
+                          OnsetResult* res) const;
   struct Fft;
   struct Correlator;
   OnsetOptions options_;

@@ -49,21 +49,23 @@ std::mutex& PlannerMutex() {
   return m;
 }
 
-// A float array of one block's length that is written in full before it is read: unlike
-// std::vector it is not zero-filled first (the fill of two such arrays per block and signal,
-// 23 MB each for 2 minutes at 48 kHz, was 8 % of detection time).
-struct FloatBuffer {
-  std::unique_ptr<float[]> data;
+// An array that is written in full before it is read: unlike std::vector it is not zero-filled
+// first (the fill of two such float arrays per block and signal, 23 MB each for 2 minutes at
+// 48 kHz, was 8 % of detection time).
+template <typename T>
+struct Buffer {
+  std::unique_ptr<T[]> data;
   std::size_t n = 0;
   void Allocate(std::size_t size) {
-    data.reset(new float[size]);
-    AdviseHugePages(data.get(), size * sizeof(float));
+    data.reset(new T[size]);
+    AdviseHugePages(data.get(), size * sizeof(T));
     n = size;
   }
   std::size_t size() const { return n; }
-  float operator[](std::size_t i) const { return data[i]; }
-  float& operator[](std::size_t i) { return data[i]; }
+  T operator[](std::size_t i) const { return data[i]; }
+  T& operator[](std::size_t i) { return data[i]; }
 };
+using FloatBuffer = Buffer<float>;
 
 // Blocks of the whitening's autocorrelation and filter per task on a thread (64 x 4096 samples:
 // ~90 tasks per 2-minute block at 48 kHz, each long enough to outweigh its scheduling).
@@ -621,11 +623,10 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
   const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
   const std::size_t ring = lag + kRefFrames;
-  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num, den;
-  ReserveHugePages(&num, frames);
-  ReserveHugePages(&den, frames);
-  num.assign(frames, 0.0);
-  den.assign(frames, 0.0);
+  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0);
+  Buffer<double> num, den;  // every frame's written below
+  num.Allocate(frames);
+  den.Allocate(frames);
   const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
   const int threads = ResolveThreads(options_.threads);
@@ -667,7 +668,7 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
         ring_rows[j] = spectra.data() + ((t + j) % ring) * bins;
       }
       NoveltyFrames4(pw, bins, ref.data(), inv_ref, in_rows, out_rows, ring_rows, scratch.data(),
-                     num.data() + t, den.data() + t);
+                     num.data.get() + t, den.data.get() + t);
       t += 3;
       continue;
     }
@@ -695,28 +696,30 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   // Floor of the denominator: the median reference power (the background), so silence and
   // digital zeros do not turn tiny increases into large ratios.
   std::vector<double> valid_den;
-  for (double v : den)
-    if (v >= 0.0) valid_den.push_back(v);
-  double floor_power = Median(valid_den);
+  valid_den.reserve(frames);
+  for (std::size_t t = 0; t < frames; ++t)
+    if (den[t] >= 0.0) valid_den.push_back(den[t]);
+  double floor_power = Median(std::move(valid_den));
   if (!(floor_power > 0.0)) {
     double mx = 0.0;
-    for (double v : valid_den) mx = std::max(mx, v);
+    for (std::size_t t = 0; t < frames; ++t)
+      if (den[t] >= 0.0) mx = std::max(mx, den[t]);
     floor_power = std::max(mx * 1e-6, 1e-30);
   }
-  for (double& v : den)
-    if (v < 0.0) v = floor_power;
+  for (std::size_t t = 0; t < frames; ++t)
+    if (den[t] < 0.0) den[t] = floor_power;
   // A click stays above its reference for the ~lag frames that contain it, a noise peak for
   // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
-  std::vector<double> raw_db;
-  ReserveHugePages(&raw_db, frames);
-  raw_db.resize(frames);
+  Buffer<double> raw_db;
+  raw_db.Allocate(frames);
   for (std::size_t t = 0; t < frames; ++t)
     raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
   std::vector<double> novelty;
   ReserveHugePages(&novelty, frames);
-  novelty.assign(frames, 0.0);
+  novelty.push_back(0.0);
   for (std::size_t t = 1; t + 1 < frames; ++t)
-    novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+    novelty.push_back((raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0);
+  if (frames > 1) novelty.push_back(0.0);
   return novelty;
 }
 
@@ -834,7 +837,6 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
                     });
   std::vector<double> thr;
   ReserveHugePages(&thr, frames);
-  thr.resize(frames);
   for (std::size_t t = 0; t < frames; ++t) {
     const double pos =
         (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
@@ -842,7 +844,7 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
     const std::size_t b0 = static_cast<std::size_t>(cl);
     const std::size_t b1 = std::min(nblk - 1, b0 + 1);
     const double fr = cl - static_cast<double>(b0);
-    thr[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+    thr.push_back(blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr);
   }
   return thr;
 }

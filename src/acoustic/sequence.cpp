@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "bouncecal/core/error.hpp"
 
@@ -59,12 +60,14 @@ struct AbsLogBound {
 };
 
 // Best chain among candidates[idx] (idx sorted by time). Empty if none qualifies.
-Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
-                const std::vector<double>& w, const TrackOptions& o, double min_mean_weight) {
-  Chain best_chain;
-  const int m = static_cast<int>(idx.size());
-  if (m < o.min_sequence_impacts) return best_chain;
+// The dynamic programme's states over candidates[idx] (idx sorted by time), in the order they
+// are made: by their last impact k. A state depends only on the candidates up to its k, so the
+// states with k inside a prefix of idx are the prefix's own, in the same order (PickChain).
+std::vector<State> ChainStates(const std::vector<Impact>& c, const std::vector<int>& idx,
+                               const std::vector<double>& w, const TrackOptions& o) {
   std::vector<State> states;
+  const int m = static_cast<int>(idx.size());
+  if (m < o.min_sequence_impacts) return states;
   std::vector<std::vector<int>> ending(static_cast<std::size_t>(m));  // state ids ending at pos
   std::vector<double> level(static_cast<std::size_t>(m));             // dBFS
   for (int p = 0; p < m; ++p)
@@ -165,9 +168,21 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
       }
     }
   }
+  return states;
+}
+
+// Best chain among candidates[idx] from the states ChainStates made for idx or for a longer
+// list that idx begins (the states past idx's last candidate are not looked at). Empty if none
+// qualifies.
+Chain PickChain(const std::vector<State>& states, const std::vector<int>& idx,
+                const std::vector<double>& w, const TrackOptions& o, double min_mean_weight) {
+  Chain best_chain;
+  const int m = static_cast<int>(idx.size());
+  if (m < o.min_sequence_impacts) return best_chain;
   int best = -1;
   for (int s = 0; s < static_cast<int>(states.size()); ++s) {
     const State& st = states[static_cast<std::size_t>(s)];
+    if (st.k >= m) break;  // made in order of k
     if (st.len < o.min_sequence_impacts) continue;
     if (best < 0 || st.score > states[static_cast<std::size_t>(best)].score) best = s;
   }
@@ -257,12 +272,21 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
     std::sort(all.begin(), all.end());
   }
   std::vector<Chain> chains;
-  std::vector<std::vector<int>> work;
-  work.push_back(std::move(all));
+  // Segments still to search, each with the states of a list it begins (ChainStates), when known:
+  // the candidates before a chain found in a segment begin that segment.
+  struct Work {
+    std::vector<int> seg;
+    std::shared_ptr<const std::vector<State>> states;
+  };
+  std::vector<Work> work;
+  work.push_back({std::move(all), nullptr});
   while (!work.empty() && static_cast<int>(chains.size()) < o.max_sequences) {
-    std::vector<int> seg = std::move(work.back());
+    std::vector<int> seg = std::move(work.back().seg);
+    std::shared_ptr<const std::vector<State>> states = std::move(work.back().states);
     work.pop_back();
-    Chain ch = BestChain(c, seg, w, o, chains.empty() ? o.min_mean_weight : o.min_mean_weight_more);
+    if (!states) states = std::make_shared<const std::vector<State>>(ChainStates(c, seg, w, o));
+    Chain ch =
+        PickChain(*states, seg, w, o, chains.empty() ? o.min_mean_weight : o.min_mean_weight_more);
     if (ch.members.empty()) continue;
     const double t0 = c[static_cast<std::size_t>(ch.members.front())].time_s;
     const double t1 = c[static_cast<std::size_t>(ch.members.back())].time_s;
@@ -271,8 +295,8 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
       if (c[static_cast<std::size_t>(i)].time_s < t0) before.push_back(i);
       if (c[static_cast<std::size_t>(i)].time_s > t1) after.push_back(i);
     }
-    if (!before.empty()) work.push_back(std::move(before));
-    if (!after.empty()) work.push_back(std::move(after));
+    if (!before.empty()) work.push_back({std::move(before), states});
+    if (!after.empty()) work.push_back({std::move(after), nullptr});
     chains.push_back(std::move(ch));
   }
   std::sort(chains.begin(), chains.end(), [&](const Chain& a, const Chain& b) {

@@ -191,34 +191,33 @@ typedef float Float8 __attribute__((vector_size(32)));
 // s: kAutocorrLags of them run together, so that their sums' additions overlap and share the
 // loads of x[s, e) (one lag alone is a chain of dependent additions): each lag's lanes see the
 // same products in the same order, the same sums to the bit.
-constexpr std::size_t kAutocorrLags = 4;
+constexpr std::size_t kAutocorrLags = 8;
 BOUNCECAL_AVX2_CLONES
 void BlockAutocorrelation(const float* x, std::size_t s, std::size_t e, std::size_t lags,
                           double* out) {
   std::size_t l = 0;
-  if (e > s) {
+  if (e > s && lags >= kAutocorrLags && lags - 1 <= s) {  // every lag's products start at s
     const std::size_t m = e - s, m8 = m & ~std::size_t{7};
     const float* a = x + s;
-    for (; l + kAutocorrLags <= lags && l + kAutocorrLags - 1 <= s; l += kAutocorrLags) {
-      Float8 acc0 = {}, acc1 = {}, acc2 = {}, acc3 = {};
-      const float* b = a - l;
+    // Groups of kAutocorrLags lags; the last group ends at the last lag (lags it shares with the
+    // group before are computed again, the same sums: cheaper than single lags, each a chain).
+    for (std::size_t g0 = 0; g0 < lags; g0 += kAutocorrLags) {
+      const std::size_t g = std::min(g0, lags - kAutocorrLags);  // the group's first lag
+      Float8 acc[kAutocorrLags] = {};
+      const float* b = a - g;
       for (std::size_t k = 0; k < m8; k += 8) {
-        Float8 va, v0, v1, v2, v3;
+        Float8 va;
         BOUNCECAL_LOAD8(va, a + k);
-        BOUNCECAL_LOAD8(v0, b + k);
-        BOUNCECAL_LOAD8(v1, b + k - 1);
-        BOUNCECAL_LOAD8(v2, b + k - 2);
-        BOUNCECAL_LOAD8(v3, b + k - 3);
-        acc0 += va * v0;
-        acc1 += va * v1;
-        acc2 += va * v2;
-        acc3 += va * v3;
+        for (std::size_t q = 0; q < kAutocorrLags; ++q) {
+          Float8 v;
+          BOUNCECAL_LOAD8(v, b + k - q);
+          acc[q] += va * v;
+        }
       }
-      out[l] = LagTotal(a, b, m8, m, acc0);
-      out[l + 1] = LagTotal(a, b - 1, m8, m, acc1);
-      out[l + 2] = LagTotal(a, b - 2, m8, m, acc2);
-      out[l + 3] = LagTotal(a, b - 3, m8, m, acc3);
+      for (std::size_t q = 0; q < kAutocorrLags; ++q)
+        out[g + q] = LagTotal(a, b - q, m8, m, acc[q]);
     }
+    l = lags;
   }
   for (; l < lags; ++l) {
     const std::size_t i0 = std::max(s, l);

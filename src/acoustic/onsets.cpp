@@ -414,6 +414,43 @@ AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end,
   return pick;
 }
 
+namespace {
+
+// The per-sample loops around the FFTs (the novelty's frames, the template correlation's
+// overlap-save blocks), compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the
+// same conversions, products and sums per element, more elements per instruction.
+BOUNCECAL_AVX2_CLONES
+void Windowed(const float* __restrict src, const double* __restrict window, std::size_t n,
+              double* __restrict out) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = src[i] * window[i];
+}
+BOUNCECAL_AVX2_CLONES
+void PowerSpectrum(const fftw_complex* __restrict spec, std::size_t bins, double* __restrict p) {
+  for (std::size_t k = 0; k < bins; ++k) p[k] = spec[k][0] * spec[k][0] + spec[k][1] * spec[k][1];
+}
+BOUNCECAL_AVX2_CLONES
+void ToDouble(const float* __restrict x, std::size_t n, double* __restrict out) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = x[i];
+}
+// spec = spec * conj(t), bin by bin (correlation in the frequency domain).
+BOUNCECAL_AVX2_CLONES
+void MultiplyByConjugate(fftw_complex* __restrict spec, const fftw_complex* __restrict t,
+                         std::size_t bins) {
+  for (std::size_t k = 0; k < bins; ++k) {
+    const double re = spec[k][0] * t[k][0] + spec[k][1] * t[k][1];
+    const double im = spec[k][1] * t[k][0] - spec[k][0] * t[k][1];
+    spec[k][0] = re;
+    spec[k][1] = im;
+  }
+}
+BOUNCECAL_AVX2_CLONES
+void ScaledToFloat(const double* __restrict in, std::size_t n, double scale,
+                   float* __restrict out) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<float>(in[i] * scale);
+}
+
+}  // namespace
+
 struct OnsetDetector::Fft {
   int n = 0;
   double* in = nullptr;
@@ -487,18 +524,13 @@ struct OnsetDetector::Correlator {
       for (std::size_t bi = first + b0; bi < first + b1; ++bi) {
         const std::size_t b = bi * step;
         const std::size_t len = std::min(nn, x.size() - b);
-        for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
+        ToDouble(x.data() + b, len, buf);
         std::fill(buf + len, buf + nn, 0.0);
         fftw_execute_dft_r2c(fwd, buf, spec);
-        for (std::size_t k = 0; k < nb; ++k) {  // X * conj(H): correlation
-          const double re = spec[k][0] * tspec[k][0] + spec[k][1] * tspec[k][1];
-          const double im = spec[k][1] * tspec[k][0] - spec[k][0] * tspec[k][1];
-          spec[k][0] = re;
-          spec[k][1] = im;
-        }
+        MultiplyByConjugate(spec, tspec, nb);  // X * conj(H): correlation
         fftw_execute_dft_c2r(inv, spec, buf);
         const std::size_t i0 = std::max(b, lo), i1 = std::min({b + step, hi, x.size()});
-        for (std::size_t i = i0; i < i1; ++i) out[i - lo] = static_cast<float>(buf[i - b] * scale);
+        if (i1 > i0) ScaledToFloat(buf + (i0 - b), i1 - i0, scale, out + (i0 - lo));
       }
     };
     ParallelForGroups(threads, blocks, kCorrelatePart, part);
@@ -637,12 +669,9 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
     const std::size_t t0 = c0 + part * kSpectraPart;
     const std::size_t t1 = std::min({frames, c0 + kSpectraChunk, t0 + kSpectraPart});
     for (std::size_t t = t0; t < t1; ++t) {
-      const float* src = w.data() + t * hop;
-      for (std::size_t i = 0; i < nw; ++i) a.real[i] = src[i] * f.window[i];
+      Windowed(w.data() + t * hop, f.window.data(), nw, a.real);
       fftw_execute_dft_r2c(f.plan, a.real, a.spec);
-      double* p = power.data() + (t - c0) * bins;
-      for (std::size_t k = 0; k < bins; ++k)
-        p[k] = a.spec[k][0] * a.spec[k][0] + a.spec[k][1] * a.spec[k][1];
+      PowerSpectrum(a.spec, bins, power.data() + (t - c0) * bins);
     }
   };
   std::vector<double> scratch(4 * bins);

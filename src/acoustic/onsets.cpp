@@ -606,37 +606,43 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
 
 namespace {
 
-// Four consecutive frames t..t+3 of Novelty's reference loop at once, in its steady state (the
-// reference full: every frame's enters and leaves), the same operations as four passes of the
-// loop: each frame's reference values and its two sums over the bins in bin order, one frame
-// per lane of a 4-lane vector (GCC/Clang vector extension), so that the four frames' sums
-// overlap (one frame's sum is a chain of dependent additions). pw: the power rows of frames
-// t..t+3; in_rows / out_rows: the rows entering / leaving the reference after frame t + j;
-// ring_rows: where frames t..t+3 are kept (written last: they replace rows that leave).
+// kNoveltyBatch consecutive frames t, t+1, ... of Novelty's reference loop at once, in its
+// steady state (the reference full: every frame's enters and leaves), the same operations as
+// that many passes of the loop: each frame's reference values and its two sums over the bins in
+// bin order, one frame per lane of 4-lane vectors (GCC/Clang vector extension), so that the
+// frames' sums overlap (one frame's sum is a chain of dependent additions). pw: the power rows
+// of the frames; in_rows / out_rows: the rows entering / leaving the reference after frame
+// t + j; ring_rows: where the frames are kept (written last: they replace rows that leave).
+constexpr std::size_t kNoveltyBatch = 8;
 typedef double Double4 __attribute__((vector_size(32)));
 BOUNCECAL_AVX2_CLONES
-void NoveltyFrames4(const double* pw, std::size_t bins, double* ref, double inv_ref,
-                    const double* const* in_rows, const double* const* out_rows,
-                    double* const* ring_rows, double* scratch, double* num, double* den) {
-  for (std::size_t j = 0; j < 4; ++j) {
-    for (std::size_t k = 0; k < bins; ++k) scratch[k * 4 + j] = ref[k] * inv_ref;
+void NoveltyFrames(const double* pw, std::size_t bins, double* ref, double inv_ref,
+                   const double* const* in_rows, const double* const* out_rows,
+                   double* const* ring_rows, double* scratch, double* num, double* den) {
+  constexpr std::size_t kB = kNoveltyBatch;
+  for (std::size_t j = 0; j < kB; ++j) {
+    for (std::size_t k = 0; k < bins; ++k) scratch[k * kB + j] = ref[k] * inv_ref;
     for (std::size_t k = 0; k < bins; ++k) ref[k] += in_rows[j][k];
     for (std::size_t k = 0; k < bins; ++k) ref[k] -= out_rows[j][k];
   }
   const Double4 zero = {0.0, 0.0, 0.0, 0.0};
-  Double4 up = zero, total = zero;
+  Double4 up0 = zero, up1 = zero, total0 = zero, total1 = zero;
   for (std::size_t k = 0; k < bins; ++k) {
-    const Double4 p = {pw[k], pw[bins + k], pw[2 * bins + k], pw[3 * bins + k]};
-    Double4 r;
-    std::memcpy(&r, scratch + k * 4, sizeof r);
-    const Double4 d = p - r;
-    up += d < zero ? zero : d;  // std::max(p - r, 0.0)
-    total += r;
+    const Double4 p0 = {pw[k], pw[bins + k], pw[2 * bins + k], pw[3 * bins + k]};
+    const Double4 p1 = {pw[4 * bins + k], pw[5 * bins + k], pw[6 * bins + k], pw[7 * bins + k]};
+    Double4 r0, r1;
+    std::memcpy(&r0, scratch + k * kB, sizeof r0);
+    std::memcpy(&r1, scratch + k * kB + 4, sizeof r1);
+    const Double4 d0 = p0 - r0, d1 = p1 - r1;
+    up0 += d0 < zero ? zero : d0;  // std::max(p - r, 0.0)
+    up1 += d1 < zero ? zero : d1;
+    total0 += r0;
+    total1 += r1;
   }
-  for (std::size_t j = 0; j < 4; ++j) {
+  for (std::size_t j = 0; j < kB; ++j) {
     std::memcpy(ring_rows[j], pw + j * bins, bins * sizeof(double));
-    num[j] = up[j];
-    den[j] = total[j];
+    num[j] = j < 4 ? up0[j] : up1[j - 4];
+    den[j] = j < 4 ? total0[j] : total1[j - 4];
   }
 }
 
@@ -674,7 +680,7 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
       PowerSpectrum(a.spec, bins, power.data() + (t - c0) * bins);
     }
   };
-  std::vector<double> scratch(4 * bins);
+  std::vector<double> scratch(kNoveltyBatch * bins);
   for (std::size_t t = 0; t < frames; ++t) {
     if (t % kSpectraChunk == 0) {
       c0 = t;
@@ -682,22 +688,24 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
       ParallelFor(threads, (in_chunk + kSpectraPart - 1) / kSpectraPart, spectra_part);
     }
     const double* pw = power.data() + (t - c0) * bins;
-    // Steady state, four frames inside the chunk: NoveltyFrames4 (kSpectraChunk is a multiple
-    // of 4, so frames t..t+3 with t % 4 == 0 never cross a chunk).
-    if (t % 4 == 0 && t >= lag + kRefFrames && t + 4 <= frames) {
-      const double* in_rows[4];
-      const double* out_rows[4];
-      double* ring_rows[4];
-      for (std::size_t j = 0; j < 4; ++j) {
+    // Steady state, a batch of frames inside the chunk: NoveltyFrames (kSpectraChunk is a
+    // multiple of kNoveltyBatch, so a batch starting at a multiple never crosses a chunk).
+    static_assert(kSpectraChunk % kNoveltyBatch == 0);
+    if (t % kNoveltyBatch == 0 && t >= lag + kRefFrames && t + kNoveltyBatch <= frames &&
+        ring >= kNoveltyBatch) {
+      const double* in_rows[kNoveltyBatch];
+      const double* out_rows[kNoveltyBatch];
+      double* ring_rows[kNoveltyBatch];
+      for (std::size_t j = 0; j < kNoveltyBatch; ++j) {
         const std::size_t f_in = t + j + 1 - lag;  // <= t + j: in this chunk or the ring
         in_rows[j] =
             f_in >= t ? power.data() + (f_in - c0) * bins : spectra.data() + (f_in % ring) * bins;
         out_rows[j] = spectra.data() + ((t + j + 1 - lag - kRefFrames) % ring) * bins;
         ring_rows[j] = spectra.data() + ((t + j) % ring) * bins;
       }
-      NoveltyFrames4(pw, bins, ref.data(), inv_ref, in_rows, out_rows, ring_rows, scratch.data(),
-                     num.data.get() + t, den.data.get() + t);
-      t += 3;
+      NoveltyFrames(pw, bins, ref.data(), inv_ref, in_rows, out_rows, ring_rows, scratch.data(),
+                    num.data.get() + t, den.data.get() + t);
+      t += kNoveltyBatch - 1;
       continue;
     }
     double* cur = spectra.data() + (t % ring) * bins;

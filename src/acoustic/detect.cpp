@@ -758,9 +758,12 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
     const bool last = b.last;
     if (threads > 1) {
+      // The blocks of the recording's end: no full block follows to keep the other threads
+      // busy, so this one's stages are split among them too (as a recording of one block's).
+      const bool tail = last || i1 - next < cap / 2;
       in_flight.push_back(
-          {lo_s, hi_s, last, std::async(std::launch::async, [&, blk = std::move(b)] {
-             return DetectBlock(blk, rate, choices, per_block);
+          {lo_s, hi_s, last, std::async(std::launch::async, [&, tail, blk = std::move(b)] {
+             return DetectBlock(blk, rate, choices, tail ? options : per_block);
            })});
       while (static_cast<int>(in_flight.size()) >= threads) merge_oldest();
     } else {

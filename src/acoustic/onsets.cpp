@@ -985,6 +985,39 @@ struct OnsetDetector::NccWindow {
 
 namespace {
 
+// The first k in [k0, k1) where xc[k] > 0 and not xc[k]^2 < k2 ww[k] (in double, as the blind
+// search asks), k1 if none: eight starts at a time (GCC/Clang vector extension, the same double
+// operations per lane), the few that pass looked at one by one.
+BOUNCECAL_AVX2_CLONES
+std::size_t NextNccCandidate(const float* xc, const float* ww, std::size_t k0, std::size_t k1,
+                             double k2) {
+  typedef float Float4 __attribute__((vector_size(16)));
+  typedef double Double4v __attribute__((vector_size(32)));
+  typedef long long Long4 __attribute__((vector_size(32)));
+  auto passes = [&](std::size_t k) {
+    const double c = xc[k], e = ww[k];
+    return (c > 0.0) & !(c * c < k2 * e);
+  };
+  std::size_t k = k0;
+  const Double4v zero = {0.0, 0.0, 0.0, 0.0};
+  const Double4v k2v = {k2, k2, k2, k2};
+  for (; k + 8 <= k1; k += 8) {
+    Long4 any = {0, 0, 0, 0};
+    for (std::size_t h = 0; h < 8; h += 4) {
+      Float4 cf, ef;
+      std::memcpy(&cf, xc + k + h, sizeof cf);
+      std::memcpy(&ef, ww + k + h, sizeof ef);
+      const Double4v cv = __builtin_convertvector(cf, Double4v);
+      const Double4v ev = __builtin_convertvector(ef, Double4v);
+      any |= (cv > zero) & ~(cv * cv < k2v * ev);
+    }
+    if (any[0] | any[1] | any[2] | any[3]) break;
+  }
+  for (; k < k1; ++k)
+    if (passes(k)) return k;
+  return k1;
+}
+
 // ww[i - base] = sum of w^2 over [i, min(n, i + tl)) for i in [b, e): exact at b, then running.
 void RunningEnergy(const std::vector<float>& w, std::size_t tl, std::size_t b, std::size_t e,
                    std::size_t base, float* ww) {
@@ -1239,11 +1272,14 @@ void OnsetDetector::BlindScan(const TemplateMatch& m, NccChunks* chunks, std::si
   const NccChunks::Chunk& c = chunks->Get(chunk);
   const std::size_t base = chunk * kNccChunk;
   const std::size_t i1 = std::min(base + kNccChunk, n > tl ? n - tl : 0);  // i + tl < n
+  const float* xc = c.xc.data.get();
+  const float* ww = c.ww.data.get();
   for (std::size_t i = std::max<std::size_t>(1, base); i < i1; ++i) {
-    // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt, one branch).
-    const double c_i = c.xc[i - base];
-    const double e = c.ww[i - base];
-    if (!(c_i > 0.0) | (c_i * c_i < k2 * e)) continue;
+    // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt): most starts are not.
+    i = base + NextNccCandidate(xc, ww, i - base, i1 - base, k2);
+    if (i >= i1) break;
+    const double c_i = xc[i - base];
+    const double e = ww[i - base];
     const double ncc = e > 0.0 ? c_i / std::sqrt(m.hh * e) : 0.0;
     if (!found->empty() && i - found->back().start <= gap_s) {
       if (ncc > found->back().ncc) {

@@ -691,8 +691,9 @@ void MergeBlockResult(BlockResult r, double own_lo_s, double own_hi_s, bool last
 // rest of the file, so that every sample is checked and the clipping reports are complete.
 // A recording of one block is detected on this thread, its stages split among
 // DetectOptions::threads; several blocks are detected concurrently, one per thread (each
-// single-threaded), while this thread reads ahead: at most threads + 1 blocks in memory. The
-// cuts depend only on the audio, and the merge is in order, so the result is the serial one.
+// single-threaded but the blocks of the recording's end), while this thread reads ahead: at most
+// threads + 1 blocks in memory. The cuts depend only on the audio, and the merge is in order, so
+// the result is the serial one.
 void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
                   const std::vector<int>& choices, const DetectOptions& options,
                   std::vector<SignalAcrossBlocks>* signals) {

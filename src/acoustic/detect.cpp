@@ -691,9 +691,11 @@ void MergeBlockResult(BlockResult r, double own_lo_s, double own_hi_s, bool last
 // rest of the file, so that every sample is checked and the clipping reports are complete.
 // A recording of one block is detected on this thread, its stages split among
 // DetectOptions::threads; several blocks are detected concurrently, one per thread (each
-// single-threaded but the blocks of the recording's end), while this thread reads ahead: at most
-// threads + 1 blocks in memory. The cuts depend only on the audio, and the merge is in order, so
-// the result is the serial one.
+// single-threaded), while this thread reads ahead: at most threads + 1 blocks in memory. The
+// cuts depend only on the audio, and the merge is in order, so the result is the serial one.
+// (Splitting the stages of the recording's last blocks among the threads too, when no full
+// block follows, was slower on the 2-core machine: 0.79-1.06 s against 0.69-0.76 s for a
+// 10-minute file, bench_long's file, idle.)
 void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
                   const std::vector<int>& choices, const DetectOptions& options,
                   std::vector<SignalAcrossBlocks>* signals) {
@@ -759,12 +761,9 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
     const bool last = b.last;
     if (threads > 1) {
-      // The blocks of the recording's end: no full block follows to keep the other threads
-      // busy, so this one's stages are split among them too (as a recording of one block's).
-      const bool tail = last || i1 - next < cap / 2;
       in_flight.push_back(
-          {lo_s, hi_s, last, std::async(std::launch::async, [&, tail, blk = std::move(b)] {
-             return DetectBlock(blk, rate, choices, tail ? options : per_block);
+          {lo_s, hi_s, last, std::async(std::launch::async, [&, blk = std::move(b)] {
+             return DetectBlock(blk, rate, choices, per_block);
            })});
       while (static_cast<int>(in_flight.size()) >= threads) merge_oldest();
     } else {

@@ -59,6 +59,35 @@ TEST(Timing, NeighbourhoodPredictorWhitensAnArProcess) {
     yy += e[20000 + i] * e[20000 + i];
   }
   EXPECT_GT(xy / std::sqrt(xx * yy), 0.99);
+  // Both are the defined sums to the bit (they run several lags, and outputs, side by side):
+  // double products in four partial sums by index mod 4, the tail into the first, then
+  // (s0 + s1) + (s2 + s3).
+  auto dot = [](auto pa, const float* b, std::size_t len) {
+    double s4[4] = {0, 0, 0, 0};
+    std::size_t k = 0;
+    for (; k < (len & ~std::size_t{3}); ++k)
+      s4[k % 4] += static_cast<double>(pa[k]) * static_cast<double>(b[k]);
+    for (; k < len; ++k) s4[0] += static_cast<double>(pa[k]) * static_cast<double>(b[k]);
+    return (s4[0] + s4[1]) + (s4[2] + s4[3]);
+  };
+  {
+    std::vector<double> r(9, 0.0);
+    for (long c : {10000L, 30000L, 50000L}) {
+      const long lo = c - 2000, len = 3000;
+      std::vector<double> rw(9);
+      for (std::size_t lag = 0; lag < 9; ++lag)
+        rw[lag] = dot(x.data() + lo + static_cast<long>(lag), x.data() + lo,
+                      static_cast<std::size_t>(len) - lag);
+      for (std::size_t k = 0; k < 9; ++k) r[k] += rw[k] / rw[0];
+    }
+    r[0] *= 1.0 + 1e-6;
+    EXPECT_EQ(a, LevinsonDurbin(r, 8));
+    std::vector<double> rev(a.rbegin(), a.rend());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < w.size(); ++i)
+      differ += w[i] != static_cast<float>(dot(rev.data(), x.data() + 20000 + i - 8, 9));
+    EXPECT_EQ(differ, 0u);
+  }
   // Windows of digital silence carry nothing: no whitening at all.
   EXPECT_EQ(NeighbourhoodPredictor(std::vector<float>(5000, 0.0f), {2500}, 8, 1000, 1000).size(),
             1u);

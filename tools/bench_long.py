@@ -10,7 +10,8 @@ Each file is one synthesized minute of steel-on-copper drops (`bouncecal synth -
 figure is a whole process as a user waits for it (`/usr/bin/time`: wall, user and system CPU,
 maximum resident set size), the run with the least CPU time (user + system) of --repeat; `bouncecal detect --json` is checked to
 find every drop (one sequence per drop). aubioonset runs with `-H 256` (its hop of 5.3 ms at
-48 kHz; bouncecal's onsets are ~0.33 ms) on the same file in the same loop, so the ratio column
+48 kHz; bouncecal's onsets are ~0.33 ms) on the same file in the same loop (the tools take turns
+each repeat; --compare adds another bouncecal build, e.g. main's, checked to print the same JSON), so the ratio column
 compares two measurements taken side by side: CPU time (user + system), which a shared machine's
 load disturbs far less, and wall time, what a user waits for (bouncecal may use several threads,
 --threads; aubioonset uses one). Prints one Markdown table.
@@ -68,39 +69,57 @@ def main():
     ap.add_argument("--threads", type=int, default=None,
                     help="bouncecal detect --threads N (default: its own, one per core)")
     ap.add_argument("--work", default=None, help="directory for the files (default: a temp dir)")
+    ap.add_argument("--compare", default=None,
+                    help="another bouncecal (e.g. main's build) timed on the same files in the "
+                         "same loop, with the same --threads: adds its wall and CPU time and "
+                         "the ratios to it, and checks that both print the same JSON")
     a = ap.parse_args()
     aubio = None if a.no_aubio else shutil.which("aubioonset")
     work = a.work or tempfile.mkdtemp(prefix="bench_long_")
     os.makedirs(work, exist_ok=True)
     cache = {}
+    cmp_head = (" | --compare wall | user + system | peak memory | --compare / bouncecal (CPU) "
+                "| --compare / bouncecal (wall)" if a.compare else "")
     print("| rate | length | drops found | bouncecal wall | user | system | peak memory "
           "| aubioonset -H 256 wall | user + system | peak memory "
-          "| aubio / bouncecal (CPU) | aubio / bouncecal (wall) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| aubio / bouncecal (CPU) | aubio / bouncecal (wall)" + cmp_head + " |")
+    print("|---" * (12 + (5 if a.compare else 0)) + "|")
     for rate in a.rates:
         for minutes in a.minutes:
             path = make_file(a.bouncecal, work, rate, minutes, cache)
             out_json = os.path.join(work, "detect.json")
-            best = None
-            for _ in range(a.repeat):
-                threads = [] if a.threads is None else ["--threads", str(a.threads)]
+            cmp_json = os.path.join(work, "detect_compare.json")
+            threads = [] if a.threads is None else ["--threads", str(a.threads)]
+            best = ab = other = None
+            for _ in range(a.repeat):  # the tools take turns, so that load shifts hit all
                 t = timed([a.bouncecal, "detect", "--json", path] + threads, out_json)
                 best = t if best is None or t[1] + t[2] < best[1] + best[2] else best
-            with open(out_json) as f:
-                found = len(json.load(f)["sequences"])
-            ab = None
-            if aubio:
-                for _ in range(a.repeat):
+                if aubio:
                     t = timed([aubio, "-i", path, "-H", "256"])
                     ab = t if ab is None or t[1] + t[2] < ab[1] + ab[2] else ab
+                if a.compare:
+                    t = timed([a.compare, "detect", "--json", path] + threads, cmp_json)
+                    other = t if other is None or t[1] + t[2] < other[1] + other[2] else other
+            with open(out_json) as f:
+                found = len(json.load(f)["sequences"])
+            if a.compare:
+                with open(out_json, "rb") as f1, open(cmp_json, "rb") as f2:
+                    if f1.read() != f2.read():
+                        sys.exit("bench_long: %s and %s print different JSON for %s"
+                                 % (a.bouncecal, a.compare, path))
             cpu = best[1] + best[2]
             aub = ("%.2f s | %.2f s | %.0f MB | %.2f | %.2f" %
                    (ab[0], ab[1] + ab[2], ab[3] / 1024, (ab[1] + ab[2]) / max(cpu, 1e-3),
                     ab[0] / max(best[0], 1e-3))
                    if ab else "- | - | - | - | -")
-            print("| %d kHz | %d min | %d of %d | %.2f s | %.2f s | %.2f s | %.0f MB | %s |" %
+            oth = ""
+            if other:
+                oth = (" | %.2f s | %.2f s | %.0f MB | %.2f | %.2f" %
+                       (other[0], other[1] + other[2], other[3] / 1024,
+                        (other[1] + other[2]) / max(cpu, 1e-3), other[0] / max(best[0], 1e-3)))
+            print("| %d kHz | %d min | %d of %d | %.2f s | %.2f s | %.2f s | %.0f MB | %s%s |" %
                   (rate // 1000, minutes, found, 6 * minutes, best[0], best[1], best[2],
-                   best[3] / 1024, aub))
+                   best[3] / 1024, aub, oth))
             sys.stdout.flush()
             os.remove(path)
     if not a.work:

@@ -15,8 +15,10 @@
 #include <regex>
 #include <sstream>
 
+#include "avx2_clones.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "huge_pages.hpp"
 
 namespace bouncecal {
 namespace fs = std::filesystem;
@@ -221,6 +223,39 @@ bool LooksLikeMpegAudio(const fs::path& p) {
 
 }  // namespace
 
+// The smallest and the largest of x[0, n) (n > 0, no NaN: the reader checked), eight lanes at a
+// time (GCC/Clang vector extension; std::minmax_element's loop is not vectorised). Only the
+// values are used, and min and max do not depend on the order they are taken in.
+namespace {
+BOUNCECAL_AVX2_CLONES
+void MinMax(const float* x, std::size_t n, float* lo, float* hi) {
+  typedef float Float8 __attribute__((vector_size(32)));
+  float mn = x[0], mx = x[0];
+  std::size_t i = 0;
+  if (n >= 8) {
+    Float8 vmin, vmax;
+    std::memcpy(&vmin, x, sizeof vmin);
+    vmax = vmin;
+    for (i = 8; i + 8 <= n; i += 8) {
+      Float8 v;
+      std::memcpy(&v, x + i, sizeof v);
+      vmin = v < vmin ? v : vmin;
+      vmax = v > vmax ? v : vmax;
+    }
+    for (int q = 0; q < 8; ++q) {
+      mn = std::min(mn, vmin[q]);
+      mx = std::max(mx, vmax[q]);
+    }
+  }
+  for (; i < n; ++i) {
+    mn = std::min(mn, x[i]);
+    mx = std::max(mx, x[i]);
+  }
+  *lo = mn;
+  *hi = mx;
+}
+}  // namespace
+
 // Clipping of one channel, kept up to date block by block (AnalyzeClipping's rule without
 // knowing the channel's extremes in advance): per side, the extreme so far and the runs of
 // samples within a float rounding step (1e-6 relative) of it; a new extreme beyond that step
@@ -255,8 +290,9 @@ struct AudioReader::Tracker {
   // The block's samples; blocks with nothing near the extremes only end the current runs.
   void Update(const float* x, std::size_t n) {
     if (n == 0) return;
-    const auto [mn_it, mx_it] = std::minmax_element(x, x + n);
-    const double mx = *mx_it, mn = *mn_it;
+    float lo = 0.0f, hi = 0.0f;
+    MinMax(x, n, &lo, &hi);
+    const double mx = hi, mn = lo;
     const bool near_pos = mx >= pos.extreme - 1e-6 * std::fabs(pos.extreme) || !any;
     const bool near_neg = -mn >= neg.extreme - 1e-6 * std::fabs(neg.extreme) || !any;
     any = true;
@@ -416,6 +452,7 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
     SNDFILE* f = source_->file.get();
     if (nch == 1) {  // straight into the channel's buffer
       std::vector<float>& o = (*out)[0];
+      ReserveHugePages(&o, first[0] + static_cast<std::size_t>(want));
       o.resize(first[0] + static_cast<std::size_t>(want));
       got = std::max<sf_count_t>(0, sf_readf_float(f, o.data() + first[0], want));
       o.resize(first[0] + static_cast<std::size_t>(got));
@@ -425,6 +462,7 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
       got = std::max<sf_count_t>(0, sf_readf_float(f, buf.data(), want));
       for (std::size_t c = 0; c < nch; ++c) {
         std::vector<float>& o = (*out)[c];
+        ReserveHugePages(&o, first[c] + static_cast<std::size_t>(got));
         o.resize(first[c] + static_cast<std::size_t>(got));
         float* dst = o.data() + first[c];
         for (std::int64_t i = 0; i < got; ++i) dst[i] = buf[static_cast<std::size_t>(i) * nch + c];

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstring>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <new>
@@ -16,6 +18,7 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "huge_pages.hpp"
 
 namespace bouncecal {
 namespace {
@@ -46,20 +49,23 @@ std::mutex& PlannerMutex() {
   return m;
 }
 
-// A float array of one block's length that is written in full before it is read: unlike
-// std::vector it is not zero-filled first (the fill of two such arrays per block and signal,
-// 23 MB each for 2 minutes at 48 kHz, was 8 % of detection time).
-struct FloatBuffer {
-  std::unique_ptr<float[]> data;
+// An array that is written in full before it is read: unlike std::vector it is not zero-filled
+// first (the fill of two such float arrays per block and signal, 23 MB each for 2 minutes at
+// 48 kHz, was 8 % of detection time).
+template <typename T>
+struct Buffer {
+  std::unique_ptr<T[]> data;
   std::size_t n = 0;
   void Allocate(std::size_t size) {
-    data.reset(new float[size]);
+    data.reset(new T[size]);
+    AdviseHugePages(data.get(), size * sizeof(T));
     n = size;
   }
   std::size_t size() const { return n; }
-  float operator[](std::size_t i) const { return data[i]; }
-  float& operator[](std::size_t i) { return data[i]; }
+  T operator[](std::size_t i) const { return data[i]; }
+  T& operator[](std::size_t i) { return data[i]; }
 };
+using FloatBuffer = Buffer<float>;
 
 // Blocks of the whitening's autocorrelation and filter per task on a thread (64 x 4096 samples:
 // ~90 tasks per 2-minute block at 48 kHz, each long enough to outweigh its scheduling).
@@ -164,13 +170,56 @@ namespace {
 // The hot loops of Whiten, compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the
 // same float multiplications and additions lane by lane, 8 lanes per instruction instead of 4.
 
+// Eight float lanes (GCC/Clang vector extension): lane-wise IEEE multiplications and additions,
+// one AVX2 register or two SSE2 ones. Loaded from unaligned memory with memcpy.
+typedef float Float8 __attribute__((vector_size(32)));
+#define BOUNCECAL_LOAD8(v, p) std::memcpy(&(v), (p), sizeof(Float8))
+
+// The float partial sums of one lag over [s, e) (i0 = max(s, l)) added up in double: the tail
+// products first, then the eight lanes in order.
+[[gnu::always_inline]] inline double LagTotal(const float* a, const float* b, std::size_t m8,
+                                              std::size_t m, const Float8& acc) {
+  double total = 0.0;
+  for (std::size_t k = m8; k < m; ++k) total += static_cast<double>(a[k]) * b[k];
+  for (int q = 0; q < 8; ++q) total += acc[q];
+  return total;
+}
+
 // r_l over one block [s, e) of x for l in [0, lags): eight independent float partial sums (a
 // block's products are well inside float precision), then summed in double (see Whiten).
-// Lags whose products all lie before the block are left as they are.
+// Lags whose products all lie before the block are left as they are. Lags l <= s all start at
+// s: kAutocorrLags of them run together, so that their sums' additions overlap and share the
+// loads of x[s, e) (one lag alone is a chain of dependent additions): each lag's lanes see the
+// same products in the same order, the same sums to the bit.
+constexpr std::size_t kAutocorrLags = 8;
 BOUNCECAL_AVX2_CLONES
 void BlockAutocorrelation(const float* x, std::size_t s, std::size_t e, std::size_t lags,
                           double* out) {
-  for (std::size_t l = 0; l < lags; ++l) {
+  std::size_t l = 0;
+  if (e > s && lags >= kAutocorrLags && lags - 1 <= s) {  // every lag's products start at s
+    const std::size_t m = e - s, m8 = m & ~std::size_t{7};
+    const float* a = x + s;
+    // Groups of kAutocorrLags lags; the last group ends at the last lag (lags it shares with the
+    // group before are computed again, the same sums: cheaper than single lags, each a chain).
+    for (std::size_t g0 = 0; g0 < lags; g0 += kAutocorrLags) {
+      const std::size_t g = std::min(g0, lags - kAutocorrLags);  // the group's first lag
+      Float8 acc[kAutocorrLags] = {};
+      const float* b = a - g;
+      for (std::size_t k = 0; k < m8; k += 8) {
+        Float8 va;
+        BOUNCECAL_LOAD8(va, a + k);
+        for (std::size_t q = 0; q < kAutocorrLags; ++q) {
+          Float8 v;
+          BOUNCECAL_LOAD8(v, b + k - q);
+          acc[q] += va * v;
+        }
+      }
+      for (std::size_t q = 0; q < kAutocorrLags; ++q)
+        out[g + q] = LagTotal(a, b - q, m8, m, acc[q]);
+    }
+    l = lags;
+  }
+  for (; l < lags; ++l) {
     const std::size_t i0 = std::max(s, l);
     if (i0 >= e) continue;
     const float* __restrict a = x + i0;
@@ -186,13 +235,40 @@ void BlockAutocorrelation(const float* x, std::size_t s, std::size_t e, std::siz
   }
 }
 
-// o[i] += sum_{j >= 1} af[j] x[i - j] for i in [b0, b1) (o holds x there): one pass per tap.
+// o[i] = x[i] + sum_{j >= 1} af[j] x[i - j] for i in [b0, b1) (o holds x there on entry). Where
+// every tap lies inside x (i >= taps - 1) eight groups of eight outputs are summed in registers,
+// tap by tap in order (the same float additions as one pass per tap over o, to the bit, without
+// storing and reloading o per tap); the first taps - 1 samples of x take one pass per tap.
 BOUNCECAL_AVX2_CLONES
 void PredictionErrorBlock(const float* x, const float* af, std::size_t taps, std::size_t b0,
                           std::size_t b1, float* o) {
+  const std::size_t full = std::max(b0, taps > 0 ? taps - 1 : 0);
+  const std::size_t edge = std::min(b1, full);
   for (std::size_t j = 1; j < taps; ++j) {
     const float aj = af[j];
-    for (std::size_t i = std::max(b0, j); i < b1; ++i) o[i] += aj * x[i - j];
+    for (std::size_t i = std::max(b0, j); i < edge; ++i) o[i] += aj * x[i - j];
+  }
+  std::size_t i = std::max(full, b0);
+  constexpr std::size_t kGroup = 64;
+  for (; i + kGroup <= b1; i += kGroup) {
+    Float8 acc[8];
+    for (int q = 0; q < 8; ++q) BOUNCECAL_LOAD8(acc[q], o + i + 8 * q);
+    for (std::size_t j = 1; j < taps; ++j) {
+      const float aj = af[j];
+      const Float8 a8 = {aj, aj, aj, aj, aj, aj, aj, aj};
+      const float* xs = x + i - j;
+      for (int q = 0; q < 8; ++q) {
+        Float8 v;
+        BOUNCECAL_LOAD8(v, xs + 8 * q);
+        acc[q] += a8 * v;
+      }
+    }
+    std::memcpy(o + i, acc, sizeof acc);
+  }
+  for (; i < b1; ++i) {
+    float acc = o[i];
+    for (std::size_t j = 1; j < taps; ++j) acc += af[j] * x[i - j];
+    o[i] = acc;
   }
 }
 
@@ -235,7 +311,9 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   const std::vector<double> a = LevinsonDurbin(r, order);
   // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block);
   // every output block depends on x only, so groups of blocks run on the threads.
-  std::vector<float> out(x);
+  std::vector<float> out;
+  ReserveHugePages(&out, n);
+  out.assign(x.begin(), x.end());
   std::vector<float> af(a.size());
   for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
   const std::size_t blk = 2048;
@@ -336,6 +414,43 @@ AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end,
   return pick;
 }
 
+namespace {
+
+// The per-sample loops around the FFTs (the novelty's frames, the template correlation's
+// overlap-save blocks), compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the
+// same conversions, products and sums per element, more elements per instruction.
+BOUNCECAL_AVX2_CLONES
+void Windowed(const float* __restrict src, const double* __restrict window, std::size_t n,
+              double* __restrict out) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = src[i] * window[i];
+}
+BOUNCECAL_AVX2_CLONES
+void PowerSpectrum(const fftw_complex* __restrict spec, std::size_t bins, double* __restrict p) {
+  for (std::size_t k = 0; k < bins; ++k) p[k] = spec[k][0] * spec[k][0] + spec[k][1] * spec[k][1];
+}
+BOUNCECAL_AVX2_CLONES
+void ToDouble(const float* __restrict x, std::size_t n, double* __restrict out) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = x[i];
+}
+// spec = spec * conj(t), bin by bin (correlation in the frequency domain).
+BOUNCECAL_AVX2_CLONES
+void MultiplyByConjugate(fftw_complex* __restrict spec, const fftw_complex* __restrict t,
+                         std::size_t bins) {
+  for (std::size_t k = 0; k < bins; ++k) {
+    const double re = spec[k][0] * t[k][0] + spec[k][1] * t[k][1];
+    const double im = spec[k][1] * t[k][0] - spec[k][0] * t[k][1];
+    spec[k][0] = re;
+    spec[k][1] = im;
+  }
+}
+BOUNCECAL_AVX2_CLONES
+void ScaledToFloat(const double* __restrict in, std::size_t n, double scale,
+                   float* __restrict out) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<float>(in[i] * scale);
+}
+
+}  // namespace
+
 struct OnsetDetector::Fft {
   int n = 0;
   double* in = nullptr;
@@ -382,41 +497,40 @@ struct OnsetDetector::Correlator {
   Correlator(const Correlator&) = delete;
   Correlator& operator=(const Correlator&) = delete;
 
-  // out[i] = sum_j h[j] x[i + j] for i in [0, x.size()), x zero beyond its end. The
-  // overlap-save blocks are independent: groups of kCorrelatePart of them run on `threads`.
-  void Correlate(const std::vector<float>& x, const std::vector<double>& h, FloatBuffer* result,
-                 int threads) const {
-    const std::size_t nn = static_cast<std::size_t>(n), m = h.size(), nb = nn / 2 + 1;
-    assert(m < nn / 2);
-    FftArrays tf(nn);
-    std::fill(tf.real, tf.real + nn, 0.0);
-    for (std::size_t j = 0; j < m; ++j) tf.real[j] = h[j];
-    fftw_execute_dft_r2c(fwd, tf.real, tf.spec);
-    const fftw_complex* tspec = tf.spec;
+  // The spectrum of the template h (zero-padded to the FFT size), which Correlate multiplies.
+  void TemplateSpectrum(const std::vector<double>& h, FftArrays* tf) const {
+    const std::size_t nn = static_cast<std::size_t>(n);
+    assert(h.size() < nn / 2);
+    std::fill(tf->real, tf->real + nn, 0.0);
+    std::copy(h.begin(), h.end(), tf->real);
+    fftw_execute_dft_r2c(fwd, tf->real, tf->spec);
+  }
+
+  // out[i - lo] = sum_j h[j] x[i + j] for i in [lo, hi), x zero beyond its end (tspec: the
+  // TemplateSpectrum of h, m = h.size()), from the overlap-save blocks of the whole x that hold
+  // them: block bi gives [bi step, (bi + 1) step), each the same computation wherever the range
+  // starts. The blocks are independent: groups of kCorrelatePart of them run on `threads`.
+  void Correlate(const std::vector<float>& x, const fftw_complex* tspec, std::size_t m,
+                 std::size_t lo, std::size_t hi, float* out, int threads) const {
+    const std::size_t nn = static_cast<std::size_t>(n), nb = nn / 2 + 1;
     const std::size_t step = nn - m + 1;  // valid outputs per block
-    FloatBuffer& out = *result;
-    out.Allocate(x.size());
     const double scale = 1.0 / static_cast<double>(nn);
-    const std::size_t blocks = (x.size() + step - 1) / step;
+    if (hi <= lo) return;
+    const std::size_t first = lo / step, blocks = (hi - 1) / step + 1 - first;
     auto part = [&](std::size_t b0, std::size_t b1) {
       FftArrays a(nn);
       double* buf = a.real;
       fftw_complex* spec = a.spec;
-      for (std::size_t bi = b0; bi < b1; ++bi) {
+      for (std::size_t bi = first + b0; bi < first + b1; ++bi) {
         const std::size_t b = bi * step;
         const std::size_t len = std::min(nn, x.size() - b);
-        for (std::size_t i = 0; i < len; ++i) buf[i] = x[b + i];
+        ToDouble(x.data() + b, len, buf);
         std::fill(buf + len, buf + nn, 0.0);
         fftw_execute_dft_r2c(fwd, buf, spec);
-        for (std::size_t k = 0; k < nb; ++k) {  // X * conj(H): correlation
-          const double re = spec[k][0] * tspec[k][0] + spec[k][1] * tspec[k][1];
-          const double im = spec[k][1] * tspec[k][0] - spec[k][0] * tspec[k][1];
-          spec[k][0] = re;
-          spec[k][1] = im;
-        }
+        MultiplyByConjugate(spec, tspec, nb);  // X * conj(H): correlation
         fftw_execute_dft_c2r(inv, spec, buf);
-        const std::size_t valid = std::min(step, x.size() - b);
-        for (std::size_t i = 0; i < valid; ++i) out[b + i] = static_cast<float>(buf[i] * scale);
+        const std::size_t i0 = std::max(b, lo), i1 = std::min({b + step, hi, x.size()});
+        if (i1 > i0) ScaledToFloat(buf + (i0 - b), i1 - i0, scale, out + (i0 - lo));
       }
     };
     ParallelForGroups(threads, blocks, kCorrelatePart, part);
@@ -490,6 +604,50 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   return res;
 }
 
+namespace {
+
+// kNoveltyBatch consecutive frames t, t+1, ... of Novelty's reference loop at once, in its
+// steady state (the reference full: every frame's enters and leaves), the same operations as
+// that many passes of the loop: each frame's reference values and its two sums over the bins in
+// bin order, one frame per lane of 4-lane vectors (GCC/Clang vector extension), so that the
+// frames' sums overlap (one frame's sum is a chain of dependent additions). pw: the power rows
+// of the frames; in_rows / out_rows: the rows entering / leaving the reference after frame
+// t + j; ring_rows: where the frames are kept (written last: they replace rows that leave).
+constexpr std::size_t kNoveltyBatch = 8;
+typedef double Double4 __attribute__((vector_size(32)));
+BOUNCECAL_AVX2_CLONES
+void NoveltyFrames(const double* pw, std::size_t bins, double* ref, double inv_ref,
+                   const double* const* in_rows, const double* const* out_rows,
+                   double* const* ring_rows, double* scratch, double* num, double* den) {
+  constexpr std::size_t kB = kNoveltyBatch;
+  for (std::size_t j = 0; j < kB; ++j) {
+    for (std::size_t k = 0; k < bins; ++k) scratch[k * kB + j] = ref[k] * inv_ref;
+    for (std::size_t k = 0; k < bins; ++k) ref[k] += in_rows[j][k];
+    for (std::size_t k = 0; k < bins; ++k) ref[k] -= out_rows[j][k];
+  }
+  const Double4 zero = {0.0, 0.0, 0.0, 0.0};
+  Double4 up0 = zero, up1 = zero, total0 = zero, total1 = zero;
+  for (std::size_t k = 0; k < bins; ++k) {
+    const Double4 p0 = {pw[k], pw[bins + k], pw[2 * bins + k], pw[3 * bins + k]};
+    const Double4 p1 = {pw[4 * bins + k], pw[5 * bins + k], pw[6 * bins + k], pw[7 * bins + k]};
+    Double4 r0, r1;
+    std::memcpy(&r0, scratch + k * kB, sizeof r0);
+    std::memcpy(&r1, scratch + k * kB + 4, sizeof r1);
+    const Double4 d0 = p0 - r0, d1 = p1 - r1;
+    up0 += d0 < zero ? zero : d0;  // std::max(p - r, 0.0)
+    up1 += d1 < zero ? zero : d1;
+    total0 += r0;
+    total1 += r1;
+  }
+  for (std::size_t j = 0; j < kB; ++j) {
+    std::memcpy(ring_rows[j], pw + j * bins, bins * sizeof(double));
+    num[j] = j < 4 ? up0[j] : up1[j - 4];
+    den[j] = j < 4 ? total0[j] : total1[j - 4];
+  }
+}
+
+}  // namespace
+
 std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   const std::size_t n = w.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
@@ -502,7 +660,10 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
   const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
   const std::size_t ring = lag + kRefFrames;
-  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0), num(frames, 0.0), den(frames, 0.0);
+  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0);
+  Buffer<double> num, den;  // every frame's written below
+  num.Allocate(frames);
+  den.Allocate(frames);
   const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
   const int threads = ResolveThreads(options_.threads);
@@ -514,14 +675,12 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
     const std::size_t t0 = c0 + part * kSpectraPart;
     const std::size_t t1 = std::min({frames, c0 + kSpectraChunk, t0 + kSpectraPart});
     for (std::size_t t = t0; t < t1; ++t) {
-      const float* src = w.data() + t * hop;
-      for (std::size_t i = 0; i < nw; ++i) a.real[i] = src[i] * f.window[i];
+      Windowed(w.data() + t * hop, f.window.data(), nw, a.real);
       fftw_execute_dft_r2c(f.plan, a.real, a.spec);
-      double* p = power.data() + (t - c0) * bins;
-      for (std::size_t k = 0; k < bins; ++k)
-        p[k] = a.spec[k][0] * a.spec[k][0] + a.spec[k][1] * a.spec[k][1];
+      PowerSpectrum(a.spec, bins, power.data() + (t - c0) * bins);
     }
   };
+  std::vector<double> scratch(kNoveltyBatch * bins);
   for (std::size_t t = 0; t < frames; ++t) {
     if (t % kSpectraChunk == 0) {
       c0 = t;
@@ -529,6 +688,26 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
       ParallelFor(threads, (in_chunk + kSpectraPart - 1) / kSpectraPart, spectra_part);
     }
     const double* pw = power.data() + (t - c0) * bins;
+    // Steady state, a batch of frames inside the chunk: NoveltyFrames (kSpectraChunk is a
+    // multiple of kNoveltyBatch, so a batch starting at a multiple never crosses a chunk).
+    static_assert(kSpectraChunk % kNoveltyBatch == 0);
+    if (t % kNoveltyBatch == 0 && t >= lag + kRefFrames && t + kNoveltyBatch <= frames &&
+        ring >= kNoveltyBatch) {
+      const double* in_rows[kNoveltyBatch];
+      const double* out_rows[kNoveltyBatch];
+      double* ring_rows[kNoveltyBatch];
+      for (std::size_t j = 0; j < kNoveltyBatch; ++j) {
+        const std::size_t f_in = t + j + 1 - lag;  // <= t + j: in this chunk or the ring
+        in_rows[j] =
+            f_in >= t ? power.data() + (f_in - c0) * bins : spectra.data() + (f_in % ring) * bins;
+        out_rows[j] = spectra.data() + ((t + j + 1 - lag - kRefFrames) % ring) * bins;
+        ring_rows[j] = spectra.data() + ((t + j) % ring) * bins;
+      }
+      NoveltyFrames(pw, bins, ref.data(), inv_ref, in_rows, out_rows, ring_rows, scratch.data(),
+                    num.data.get() + t, den.data.get() + t);
+      t += kNoveltyBatch - 1;
+      continue;
+    }
     double* cur = spectra.data() + (t % ring) * bins;
     double up = 0.0, ref_total = 0.0;
     for (std::size_t k = 0; k < bins; ++k) {
@@ -553,43 +732,126 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   // Floor of the denominator: the median reference power (the background), so silence and
   // digital zeros do not turn tiny increases into large ratios.
   std::vector<double> valid_den;
-  for (double v : den)
-    if (v >= 0.0) valid_den.push_back(v);
-  double floor_power = Median(valid_den);
+  valid_den.reserve(frames);
+  for (std::size_t t = 0; t < frames; ++t)
+    if (den[t] >= 0.0) valid_den.push_back(den[t]);
+  double floor_power = Median(std::move(valid_den));
   if (!(floor_power > 0.0)) {
     double mx = 0.0;
-    for (double v : valid_den) mx = std::max(mx, v);
+    for (std::size_t t = 0; t < frames; ++t)
+      if (den[t] >= 0.0) mx = std::max(mx, den[t]);
     floor_power = std::max(mx * 1e-6, 1e-30);
   }
-  for (double& v : den)
-    if (v < 0.0) v = floor_power;
+  for (std::size_t t = 0; t < frames; ++t)
+    if (den[t] < 0.0) den[t] = floor_power;
   // A click stays above its reference for the ~lag frames that contain it, a noise peak for
   // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
-  std::vector<double> raw_db(frames);
+  Buffer<double> raw_db;
+  raw_db.Allocate(frames);
   for (std::size_t t = 0; t < frames; ++t)
     raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
-  std::vector<double> novelty(frames, 0.0);
+  std::vector<double> novelty;
+  ReserveHugePages(&novelty, frames);
+  novelty.push_back(0.0);
   for (std::size_t t = 1; t + 1 < frames; ++t)
-    novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+    novelty.push_back((raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0);
+  if (frames > 1) novelty.push_back(0.0);
   return novelty;
 }
 
-// The threshold at frame c: median + max(threshold_mads MAD, min_novelty_db) of the novelty
-// over the `win` frames around c (every fourth frame).
-double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t c, std::size_t win,
-                                     std::vector<double>* buf_) const {
-  std::vector<double>& buf = *buf_;
-  const std::size_t frames = nov.size();
+void SlidingSample::Set(const std::vector<double>& v, std::size_t lo, std::size_t hi,
+                        std::size_t stride) {
+  stride = std::max<std::size_t>(1, stride);
+  hi = std::max(hi, lo);
+  // The first sampled index at or after `from` on the grid lo + k stride.
+  auto on_grid = [&](std::size_t from) {
+    return from <= lo ? lo : lo + (from - lo + stride - 1) / stride * stride;
+  };
+  bool slide =
+      valid_ && stride == stride_ && lo >= lo_ && hi >= hi_ && lo < hi_ && (lo - lo_) % stride == 0;
+  if (slide) {
+    // One merge pass: the kept values in order, minus the ones that left, plus the ones that
+    // came (both sorted). A value that left must be among the kept ones (NaN is not).
+    leaving_.clear();
+    for (std::size_t q = lo_; q < lo; q += stride) leaving_.push_back(v[q]);
+    coming_.clear();
+    for (std::size_t q = on_grid(hi_); q < hi; q += stride) coming_.push_back(v[q]);
+    std::sort(leaving_.begin(), leaving_.end());
+    std::sort(coming_.begin(), coming_.end());
+    merged_.clear();
+    std::size_t a = 0, l = 0, c = 0;
+    const std::size_t na = sorted_.size(), nl = leaving_.size(), nc = coming_.size();
+    while (a < na) {
+      const double x = sorted_[a];
+      if (l < nl && leaving_[l] == x) {  // one copy leaves
+        ++l;
+        ++a;
+      } else if (l < nl && !(leaving_[l] > x)) {
+        break;  // a leaving value not among the kept ones (NaN): select anew
+      } else if (c < nc && coming_[c] < x) {
+        merged_.push_back(coming_[c++]);
+      } else {
+        merged_.push_back(x);
+        ++a;
+      }
+    }
+    slide = a == na && l == nl;
+    if (slide) {
+      merged_.insert(merged_.end(), coming_.begin() + static_cast<std::ptrdiff_t>(c),
+                     coming_.end());
+      sorted_.swap(merged_);
+    }
+  }
+  if (!slide) {
+    sorted_.clear();
+    for (std::size_t q = lo; q < hi; q += stride) sorted_.push_back(v[q]);
+    std::sort(sorted_.begin(), sorted_.end());
+  }
+  lo_ = lo;
+  hi_ = hi;
+  stride_ = stride;
+  valid_ = true;
+}
 
+double SlidingSample::Median() const { return sorted_.empty() ? 0.0 : sorted_[sorted_.size() / 2]; }
+
+double SlidingSample::Mad(double centre) const {
+  if (sorted_.empty()) return 0.0;
+  // |value - centre| grows away from centre on both sides of the sorted values: merge the two
+  // runs (left of the first value >= centre going down, the rest going up) up to the rank.
+  const std::size_t n = sorted_.size(), rank = n / 2;
+  std::size_t right = static_cast<std::size_t>(
+      std::lower_bound(sorted_.begin(), sorted_.end(), centre) - sorted_.begin());
+  std::size_t left = right;  // values [0, left) not taken yet, taken from left - 1 down
+  double d = 0.0;
+  for (std::size_t taken = 0; taken <= rank; ++taken) {
+    const bool has_l = left > 0, has_r = right < n;
+    const double dl = has_l ? std::fabs(sorted_[left - 1] - centre) : 0.0;
+    const double dr = has_r ? std::fabs(sorted_[right] - centre) : 0.0;
+    if (has_l && (!has_r || dl <= dr)) {
+      d = dl;
+      --left;
+    } else {
+      d = dr;
+      ++right;
+    }
+  }
+  return d;
+}
+
+// The threshold at frame c: median + max(threshold_mads MAD, min_novelty_db) of the novelty
+// over the `win` frames around c (every fourth frame). `window` slides from the previous
+// block's frames (SlidingSample: the same median and MAD as selecting from all of them).
+double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t c, std::size_t win,
+                                     SlidingSample* window) const {
+  const std::size_t frames = nov.size();
   const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
   const std::size_t hi = std::min(frames, lo + win);
   // Every fourth frame of the window (~225 values at the default hop): the median and MAD of
   // the background are as good and a quarter of the work.
-  buf.clear();
-  for (std::size_t q = lo; q < hi; q += 4) buf.push_back(nov[q]);
-  const double med = Median(buf);
-  for (double& v : buf) v = std::fabs(v - med);
-  const double mad = 1.4826 * Median(buf);
+  window->Set(nov, lo, hi, 4);
+  const double med = window->Median();
+  const double mad = 1.4826 * window->Mad(med);
   return med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
 }
 
@@ -605,11 +867,12 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
   // Each block's median and MAD are independent: groups of kThresholdPart blocks per thread task.
   ParallelForGroups(ResolveThreads(options_.threads), nblk, kThresholdPart,
                     [&](std::size_t b0, std::size_t b1) {
-                      std::vector<double> buf;
+                      SlidingSample window;
                       for (std::size_t b = b0; b < b1; ++b)
-                        blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &buf);
+                        blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
                     });
-  std::vector<double> thr(frames);
+  std::vector<double> thr;
+  ReserveHugePages(&thr, frames);
   for (std::size_t t = 0; t < frames; ++t) {
     const double pos =
         (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
@@ -617,7 +880,7 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
     const std::size_t b0 = static_cast<std::size_t>(cl);
     const std::size_t b1 = std::min(nblk - 1, b0 + 1);
     const double fr = cl - static_cast<double>(b0);
-    thr[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+    thr.push_back(blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr);
   }
   return thr;
 }
@@ -696,69 +959,197 @@ Impact OnsetDetector::Refine(const std::vector<float>& x, const OnsetResult& res
   return imp;
 }
 
-// The template and its normalised cross-correlation with the whole whitened signal.
+// The template, and its normalised cross-correlation with the whitened signal, computed a chunk
+// at a time: the correlation xc[i] = sum_j h[j] w[i + j] and the energy under the template
+// ww[i] = sum of w^2 over [i, min(n, i + tl)) of every template start i. Both were whole-block
+// float arrays (46 MB for a 2-minute block at 48 kHz, 40 % of the detection's memory, all of it
+// first touched per block); a chunk holds kNccChunk starts, and each value is computed the same
+// way wherever the chunk starts (xc from the overlap-save block of the whole signal that holds
+// it, ww from its kEnergyRestart stretch), so the values are the same to the bit.
+constexpr std::size_t kNccChunk = 32 * kEnergyRestart;
+constexpr std::size_t kNccChunksKept = 4;
+
 struct OnsetDetector::TemplateMatch {
-  FloatBuffer xc;  // sum_j h[j] w[i + j]
-  FloatBuffer ww;  // energy of w under the template at each start
   double hh = 0.0;
   long ref_start = 0;  // template start sample
   double t_ref = 0.0;  // its onset time (AIC pick of the strongest onset)
   long lead = 0;       // samples from the template start to its onset
-  double Ncc(std::size_t i) const {
-    const double e = ww[i];
-    return e > 0.0 ? static_cast<double>(xc[i]) / std::sqrt(hh * e) : 0.0;
-  }
+  long n = 0;          // template starts (samples of the whitened signal)
+};
+
+// NCC values of one stretch of template starts [begin, begin + xc.size()), kept for later.
+struct OnsetDetector::NccWindow {
+  long begin = 0;
+  std::vector<float> xc, ww;
 };
 
 namespace {
 
-// ww[i] = sum of w^2 over [i, min(n, i + tl)) for i in [b, e): exact at b, then running.
+// The first k in [k0, k1) where xc[k] > 0 and not xc[k]^2 < k2 ww[k] (in double, as the blind
+// search asks), k1 if none: eight starts at a time (GCC/Clang vector extension, the same double
+// operations per lane), the few that pass looked at one by one.
+BOUNCECAL_AVX2_CLONES
+std::size_t NextNccCandidate(const float* xc, const float* ww, std::size_t k0, std::size_t k1,
+                             double k2) {
+  typedef float Float4 __attribute__((vector_size(16)));
+  typedef double Double4v __attribute__((vector_size(32)));
+  typedef long long Long4 __attribute__((vector_size(32)));
+  auto passes = [&](std::size_t k) {
+    const double c = xc[k], e = ww[k];
+    return (c > 0.0) & !(c * c < k2 * e);
+  };
+  std::size_t k = k0;
+  const Double4v zero = {0.0, 0.0, 0.0, 0.0};
+  const Double4v k2v = {k2, k2, k2, k2};
+  for (; k + 8 <= k1; k += 8) {
+    Long4 any = {0, 0, 0, 0};
+    for (std::size_t h = 0; h < 8; h += 4) {
+      Float4 cf, ef;
+      std::memcpy(&cf, xc + k + h, sizeof cf);
+      std::memcpy(&ef, ww + k + h, sizeof ef);
+      const Double4v cv = __builtin_convertvector(cf, Double4v);
+      const Double4v ev = __builtin_convertvector(ef, Double4v);
+      any |= (cv > zero) & ~(cv * cv < k2v * ev);
+    }
+    if (any[0] | any[1] | any[2] | any[3]) break;
+  }
+  for (; k < k1; ++k)
+    if (passes(k)) return k;
+  return k1;
+}
+
+// ww[i - base] = sum of w^2 over [i, min(n, i + tl)) for i in [b, e): exact at b, then running.
 void RunningEnergy(const std::vector<float>& w, std::size_t tl, std::size_t b, std::size_t e,
-                   FloatBuffer* ww_out) {
+                   std::size_t base, float* ww) {
   const std::size_t n = w.size();
-  FloatBuffer& ww = *ww_out;
-  {
-    double run = 0.0;
-    for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
-    ww[b] = static_cast<float>(run);
-    const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
-    std::size_t i = b + 1;
-    for (; i < e_in; ++i) {
-      const double in_v = w[i + tl - 1], out_v = w[i - 1];
-      run += in_v * in_v - out_v * out_v;
-      ww[i] = static_cast<float>(std::max(run, 0.0));
-    }
-    for (; i < e; ++i) {
-      const double out_v = w[i - 1];
-      run -= out_v * out_v;
-      ww[i] = static_cast<float>(std::max(run, 0.0));
-    }
+  double run = 0.0;
+  for (std::size_t j = b; j < std::min(n, b + tl); ++j) run += static_cast<double>(w[j]) * w[j];
+  ww[b - base] = static_cast<float>(run);
+  const std::size_t e_in = std::min(e, n - std::min(n, tl - 1));  // w[i + tl - 1] exists
+  std::size_t i = b + 1;
+  for (; i < e_in; ++i) {
+    const double in_v = w[i + tl - 1], out_v = w[i - 1];
+    run += in_v * in_v - out_v * out_v;
+    ww[i - base] = static_cast<float>(std::max(run, 0.0));
+  }
+  for (; i < e; ++i) {
+    const double out_v = w[i - 1];
+    run -= out_v * out_v;
+    ww[i - base] = static_cast<float>(std::max(run, 0.0));
   }
 }
 
 // RunningEnergy on the four whole stretches starting at b, b + kEnergyRestart, ... (all of
 // w[i + tl - 1] inside w): the same operations per stretch, interleaved, so that the four
 // running sums' additions overlap (one sum alone is a chain of dependent additions).
-void RunningEnergy4(const std::vector<float>& w, std::size_t tl, std::size_t b,
-                    FloatBuffer* ww_out) {
-  FloatBuffer& ww = *ww_out;
+void RunningEnergy4(const std::vector<float>& w, std::size_t tl, std::size_t b, std::size_t base,
+                    float* ww) {
   double run[4];
   for (std::size_t q = 0; q < 4; ++q) {
     const std::size_t bq = b + q * kEnergyRestart;
     run[q] = 0.0;
     for (std::size_t j = bq; j < bq + tl; ++j) run[q] += static_cast<double>(w[j]) * w[j];
-    ww[bq] = static_cast<float>(run[q]);
+    ww[bq - base] = static_cast<float>(run[q]);
   }
   for (std::size_t i = 1; i < kEnergyRestart; ++i)
     for (std::size_t q = 0; q < 4; ++q) {
       const std::size_t at = b + q * kEnergyRestart + i;
       const double in_v = w[at + tl - 1], out_v = w[at - 1];
       run[q] += in_v * in_v - out_v * out_v;
-      ww[at] = static_cast<float>(std::max(run[q], 0.0));
+      ww[at - base] = static_cast<float>(std::max(run[q], 0.0));
     }
 }
 
 }  // namespace
+
+// The chunks of xc and ww, computed on demand and kept (the kNccChunksKept used last): the
+// template pass reads them in time order, so each is computed once.
+struct OnsetDetector::NccChunks {
+  const Correlator& corr;
+  const std::vector<float>& w;
+  const std::vector<double>& h;
+  double hh;
+  int threads;
+  FftArrays tf;  // the template's spectrum
+  struct Chunk {
+    long index = -1;
+    unsigned long used = 0;
+    FloatBuffer xc, ww;
+  };
+  Chunk kept[kNccChunksKept];
+  unsigned long clock = 0;
+
+  NccChunks(const Correlator& c, const std::vector<float>& whitened, const std::vector<double>& tpl,
+            double tpl_energy, int n_threads)
+      : corr(c),
+        w(whitened),
+        h(tpl),
+        hh(tpl_energy),
+        threads(n_threads),
+        tf(static_cast<std::size_t>(c.n)) {
+    corr.TemplateSpectrum(h, &tf);
+  }
+
+  const Chunk& Get(std::size_t index) {
+    Chunk* slot = &kept[0];
+    for (Chunk& c : kept) {
+      if (c.index == static_cast<long>(index)) {
+        c.used = ++clock;
+        return c;
+      }
+      if (c.used < slot->used) slot = &c;
+    }
+    Compute(index, slot);
+    slot->used = ++clock;
+    return *slot;
+  }
+
+  void Compute(std::size_t index, Chunk* c) {
+    const std::size_t n = w.size(), tl = h.size();
+    const std::size_t lo = index * kNccChunk, hi = std::min(n, lo + kNccChunk);
+    if (c->xc.size() < kNccChunk) {
+      c->xc.Allocate(kNccChunk);
+      c->ww.Allocate(kNccChunk);
+    }
+    c->index = static_cast<long>(index);
+    corr.Correlate(w, tf.spec, tl, lo, hi, c->xc.data.get(), threads);
+    // The energy's running sum is recomputed exactly every kEnergyRestart samples, so rounding
+    // cannot accumulate; the restarts make the stretches independent (kNccChunk is a multiple):
+    // groups of kEnergyPart of them on the threads, four whole ones at a time where they fit.
+    const std::size_t s0 = lo / kEnergyRestart, s1 = (hi + kEnergyRestart - 1) / kEnergyRestart;
+    float* ww = c->ww.data.get();
+    ParallelForGroups(threads, s1 - s0, kEnergyPart, [&](std::size_t g0, std::size_t g1) {
+      std::size_t b = (s0 + g0) * kEnergyRestart;
+      const std::size_t end = (s0 + g1) * kEnergyRestart;
+      for (; b + 4 * kEnergyRestart <= end && b + 4 * kEnergyRestart + tl <= n + 1;
+           b += 4 * kEnergyRestart)
+        RunningEnergy4(w, tl, b, lo, ww);
+      for (; b < end; b += kEnergyRestart)
+        RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), lo, ww);
+    });
+  }
+
+  double Ncc(std::size_t i) {
+    const Chunk& c = Get(i / kNccChunk);
+    const std::size_t k = i - static_cast<std::size_t>(c.index) * kNccChunk;
+    const double e = c.ww[k];
+    return e > 0.0 ? static_cast<double>(c.xc[k]) / std::sqrt(hh * e) : 0.0;
+  }
+
+  // xc and ww over [a, b] (inclusive, inside [0, n)), for later.
+  void Keep(long a, long b, NccWindow* out) {
+    out->begin = a;
+    out->xc.resize(static_cast<std::size_t>(b - a + 1));
+    out->ww.resize(out->xc.size());
+    for (long i = a; i <= b; ++i) {
+      const std::size_t u = static_cast<std::size_t>(i);
+      const Chunk& c = Get(u / kNccChunk);
+      const std::size_t k = u - static_cast<std::size_t>(c.index) * kNccChunk;
+      out->xc[static_cast<std::size_t>(i - a)] = c.xc[k];
+      out->ww[static_cast<std::size_t>(i - a)] = c.ww[k];
+    }
+  }
+};
 
 bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
   const std::vector<float>& w = res->whitened;
@@ -780,29 +1171,12 @@ bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
   res->template_start = m->ref_start;
   res->template_onset_s = res->onsets[strongest].time_s;
   m->t_ref = res->onsets[strongest].time_s;
-  corr_->Correlate(w, h, &m->xc, ResolveThreads(options_.threads));
-  // Energy of w under the template at each start: ww[i] = sum of w^2 over [i, min(n, i + tl)),
-  // a running sum (float storage: half the memory of double prefix sums, which dominated the
-  // allocation cost), recomputed exactly every 8192 samples so rounding cannot accumulate.
-  // The restarts make the stretches independent: groups of kEnergyPart of them on the threads.
-  m->ww.Allocate(n);
-  const std::size_t stretches = (n + kEnergyRestart - 1) / kEnergyRestart;
-  auto energy_part = [&](std::size_t part) {
-    const std::size_t s1 = std::min(stretches, (part + 1) * kEnergyPart);
-    std::size_t b = part * kEnergyPart * kEnergyRestart;
-    // Four whole stretches at a time where they fit, then one by one.
-    for (; b + 4 * kEnergyRestart <= s1 * kEnergyRestart && b + 4 * kEnergyRestart + tl <= n + 1;
-         b += 4 * kEnergyRestart)
-      RunningEnergy4(w, tl, b, &m->ww);
-    for (; b < s1 * kEnergyRestart; b += kEnergyRestart)
-      RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), &m->ww);
-  };
-  ParallelFor(ResolveThreads(options_.threads), (stretches + kEnergyPart - 1) / kEnergyPart,
-              energy_part);
+  m->n = static_cast<long>(n);
   return true;
 }
 
-void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, Impact* im) const {
+void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, const std::function<double(long)>& ncc,
+                                     long lo, long hi, Impact* im) const {
   // The impacts of one ball on one plate have the same waveform up to level, so the
   // cross-correlation lag to the template times them relative to the template's own onset far
   // more consistently than an AIC pick on each: the AIC moves with the level (it finds the first
@@ -812,7 +1186,7 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
   // scatter by 1-5 us (tools/bench_detect). Every impact with a clear match
   // (NCC >= template_timing_ncc) is therefore timed by the template. t_guess: the AIC pick;
   // [lo, hi]: template starts the AIC window allowed (the pick can land anywhere in it).
-  const long n = static_cast<long>(m.ww.size());
+  const long n = m.n;
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
   const long s0 = std::lround(im->time_s * rate_hz_) - m.lead;
   // Best NCC within +-maxlag of the guess; a farther one (in the AIC window or 2 maxlag around
@@ -822,7 +1196,7 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
   const long from = std::max(1L, std::min(lo, s0 - 2 * maxlag));
   const long to = std::min(n - 2, std::max(hi, s0 + 2 * maxlag));
   for (long l = from; l <= to; ++l) {
-    const double c = m.Ncc(static_cast<std::size_t>(l));
+    const double c = ncc(l);
     const bool near = std::labs(l - s0) <= maxlag;
     if (near && c > best_c) {
       best_c = c;
@@ -838,8 +1212,8 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
     best_l = far_l;
   }
   if (best_c < options_.template_timing_ncc || best_l < 1) return;
-  const double cm = m.Ncc(static_cast<std::size_t>(best_l - 1));
-  const double cp = m.Ncc(static_cast<std::size_t>(best_l + 1));
+  const double cm = ncc(best_l - 1);
+  const double cp = ncc(best_l + 1);
   const double curv = cm - 2.0 * best_c + cp;
   const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
   im->time_s = m.t_ref + (static_cast<double>(best_l - m.ref_start) + d) / rate_hz_;
@@ -852,45 +1226,103 @@ void OnsetDetector::TimeWithTemplate(const TemplateMatch& m, long lo, long hi, I
                  std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_));
 }
 
-void OnsetDetector::BlindTemplateSearch(const std::vector<float>& x, const TemplateMatch& m,
-                                        OnsetResult* res) const {
+// Template starts TimeWithTemplate reads for an impact at time_s ([lo, hi]: as it is given):
+// [from - 1, to + 1] inside [0, n).
+std::pair<long, long> OnsetDetector::TimingStarts(const TemplateMatch& m, long lo, long hi,
+                                                  double time_s) const {
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  const long s0 = std::lround(time_s * rate_hz_) - m.lead;
+  const long from = std::max(1L, std::min(lo, s0 - 2 * maxlag));
+  const long to = std::min(m.n - 2, std::max(hi, s0 + 2 * maxlag));
+  return {std::max(0L, from - 1), std::min(m.n - 1, to + 1)};
+}
+
+// A start where the NCC with the template reaches the blind search's threshold (the best of
+// its run), and the NCC around it that timing it will read.
+struct OnsetDetector::BlindCandidate {
+  std::size_t start = 0;
+  double ncc = 0.0;
+  NccWindow window;
+};
+
+void OnsetDetector::BlindScan(const TemplateMatch& m, NccChunks* chunks, std::size_t chunk,
+                              std::vector<BlindCandidate>* found) const {
   // Onsets the flux missed (late impacts on top of ringing): starts where the NCC with the
-  // template reaches template_threshold, away from the known onsets.
-  std::vector<double> known;
-  for (const Impact& im : res->onsets) known.push_back(im.time_s);
-  std::sort(known.begin(), known.end());
-  const std::size_t n = m.ww.size();
+  // template reaches template_threshold; runs closer than min_gap_s keep their best start.
+  const std::size_t n = static_cast<std::size_t>(m.n);
   const std::size_t tl = static_cast<std::size_t>(template_len_);
   const std::size_t gap_s = static_cast<std::size_t>(options_.min_gap_s * rate_hz_);
   // The NCC of a template of L samples with white noise has a standard deviation of about
   // 1/sqrt(L): ask for 4 of those at least, so short templates (low rates) stay selective.
   const double ncc_min =
       std::max(options_.template_threshold, 4.0 / std::sqrt(static_cast<double>(tl)));
-  std::vector<std::pair<std::size_t, double>> found;  // (start sample, ncc)
   const double k2 = ncc_min * ncc_min * m.hh;
-  for (std::size_t i = 1; i + tl < n; ++i) {
-    // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt, one branch).
-    const double c_i = m.xc[i];
-    if (!(c_i > 0.0) | (c_i * c_i < k2 * static_cast<double>(m.ww[i]))) continue;
-    const double c = m.Ncc(i);
-    if (!found.empty() && i - found.back().first <= gap_s) {
-      if (c > found.back().second) found.back() = {i, c};
+  // The starts Refine's tight AIC window and TimeWithTemplate may read around a candidate
+  // (TimingStarts of any time the window can give, with a margin); beyond them the chunks answer.
+  const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
+  const long nw = window_;
+  const long pre = std::max(nw, static_cast<long>(options_.aic_pre_s * rate_hz_));
+  const long post = std::max(nw / 2, static_cast<long>(options_.aic_post_s * rate_hz_));
+  const long before = std::max(16L, pre / 3) + 2 * maxlag + 8;
+  const long after = std::max(8L, post / 2) + 2 * maxlag + 8;
+  auto keep = [&](BlindCandidate* f) {
+    const long i = static_cast<long>(f->start);
+    chunks->Keep(std::max(0L, i - before), std::min(m.n - 1, i + after), &f->window);
+  };
+  const NccChunks::Chunk& c = chunks->Get(chunk);
+  const std::size_t base = chunk * kNccChunk;
+  const std::size_t i1 = std::min(base + kNccChunk, n > tl ? n - tl : 0);  // i + tl < n
+  const float* xc = c.xc.data.get();
+  const float* ww = c.ww.data.get();
+  for (std::size_t i = std::max<std::size_t>(1, base); i < i1; ++i) {
+    // NCC >= ncc_min <=> xc > 0 and xc^2 >= ncc_min^2 hh ww (no sqrt): most starts are not.
+    i = base + NextNccCandidate(xc, ww, i - base, i1 - base, k2);
+    if (i >= i1) break;
+    const double c_i = xc[i - base];
+    const double e = ww[i - base];
+    const double ncc = e > 0.0 ? c_i / std::sqrt(m.hh * e) : 0.0;
+    if (!found->empty() && i - found->back().start <= gap_s) {
+      if (ncc > found->back().ncc) {
+        found->back().start = i;
+        found->back().ncc = ncc;
+        keep(&found->back());
+      }
       continue;
     }
-    found.push_back({i, c});
+    found->push_back({i, ncc, {}});
+    keep(&found->back());
   }
+}
+
+void OnsetDetector::AddBlindCandidates(const std::vector<float>& x, const TemplateMatch& m,
+                                       NccChunks* chunks, const std::vector<BlindCandidate>& found,
+                                       OnsetResult* res) const {
+  // Candidates away from the known onsets (timed by the template already) become onsets.
+  std::vector<double> known;
+  for (const Impact& im : res->onsets) known.push_back(im.time_s);
+  std::sort(known.begin(), known.end());
   const std::size_t before = res->onsets.size();
   const std::size_t lead = static_cast<std::size_t>(m.lead);
-  for (const auto& [i, c] : found) {
-    const double t = static_cast<double>(i + lead) / rate_hz_;
+  for (const BlindCandidate& f : found) {
+    const double t = static_cast<double>(f.start + lead) / rate_hz_;
     auto it = std::lower_bound(known.begin(), known.end(), t);
     const bool near_known = (it != known.end() && *it - t < options_.min_gap_s) ||
                             (it != known.begin() && t - *(it - 1) < options_.min_gap_s);
     if (near_known) continue;
-    Impact imp = Refine(x, *res, i + lead, true);
-    imp.score = std::clamp(c, 0.0, 1.0);
-    const long s0 = static_cast<long>(i);
-    TimeWithTemplate(m, s0, s0, &imp);
+    Impact imp = Refine(x, *res, f.start + lead, true);
+    imp.score = std::clamp(f.ncc, 0.0, 1.0);
+    const long s0 = static_cast<long>(f.start);
+    const NccWindow& v = f.window;
+    const double hh = m.hh;
+    auto ncc = [&](long l) {
+      const long k = l - v.begin;
+      if (k < 0 || k >= static_cast<long>(v.xc.size()))
+        return chunks->Ncc(static_cast<std::size_t>(l));
+      const double e = v.ww[static_cast<std::size_t>(k)];
+      return e > 0.0 ? static_cast<double>(v.xc[static_cast<std::size_t>(k)]) / std::sqrt(hh * e)
+                     : 0.0;
+    };
+    TimeWithTemplate(m, ncc, s0, s0, &imp);
     res->onsets.push_back(imp);
   }
   if (res->onsets.size() != before)
@@ -903,21 +1335,44 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
   // The impacts of one ball on one plate look alike: the whitened waveform of the strongest
   // onset is the template; its NCC with the whole whitened signal (FFT overlap-save) scores
   // every onset (Impact::score), times the clear matches and finds impacts the flux missed.
+  // The NCC is computed chunk by chunk in time order (NccChunks); each onset is scored and
+  // timed once the chunk holding the last start it reads is there, each chunk searched blind.
   if (res->onsets.empty()) return;
   TemplateMatch m;
   if (!BuildTemplate(res, &m)) return;
-  const long n = static_cast<long>(m.ww.size());
+  NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh,
+                   ResolveThreads(options_.threads));
+  auto live = [&](long l) { return chunks.Ncc(static_cast<std::size_t>(l)); };
+  const long n = m.n;
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;
-  for (Impact& im : res->onsets) {
+  std::vector<Impact>& onsets = res->onsets;
+  auto last_start = [&](std::size_t k) {
+    const long s0 = std::lround(onsets[k].time_s * rate_hz_) - m.lead;
+    return std::max(
+        s0 + maxlag,
+        TimingStarts(m, window_lo[k] - m.lead, window_hi[k] - m.lead, onsets[k].time_s).second);
+  };
+  auto score_and_time = [&](std::size_t k) {
+    Impact& im = onsets[k];
     const long s0 = std::lround(im.time_s * rate_hz_) - m.lead;
     double best = 0.0;
     for (long l = std::max(0L, s0 - maxlag); l <= s0 + maxlag && l < n; ++l)
-      best = std::max(best, m.Ncc(static_cast<std::size_t>(l)));
+      best = std::max(best, live(l));
     im.score = std::clamp(best, 0.0, 1.0);
+    TimeWithTemplate(m, live, window_lo[k] - m.lead, window_hi[k] - m.lead, &im);
+  };
+  const bool blind = options_.template_threshold < 1.0;
+  std::vector<BlindCandidate> found;
+  std::size_t next = 0;
+  const std::size_t nchunks = (static_cast<std::size_t>(n) + kNccChunk - 1) / kNccChunk;
+  for (std::size_t c = 0; c < nchunks; ++c) {
+    const long chunk_end =
+        static_cast<long>(std::min((c + 1) * kNccChunk, static_cast<std::size_t>(n)));
+    for (; next < onsets.size() && last_start(next) < chunk_end; ++next) score_and_time(next);
+    if (blind) BlindScan(m, &chunks, c, &found);
   }
-  for (std::size_t i = 0; i < res->onsets.size(); ++i)
-    TimeWithTemplate(m, window_lo[i] - m.lead, window_hi[i] - m.lead, &res->onsets[i]);
-  if (options_.template_threshold < 1.0) BlindTemplateSearch(x, m, res);
+  for (; next < onsets.size(); ++next) score_and_time(next);
+  if (blind) AddBlindCandidates(x, m, &chunks, found, res);
 }
 
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,

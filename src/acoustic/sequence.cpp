@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "bouncecal/core/error.hpp"
 
@@ -34,13 +35,39 @@ struct Chain {
   double score = 0.0;
 };
 
+// Whether |log u| < t (strict) or <= t, deciding from u alone where the answer is certain: the
+// tracker compares most ratios of candidate pairs (noise among impacts) with bounds they are far
+// outside or inside, and std::log was a third of its time. u is compared with e^t and e^-t
+// widened (or narrowed) by kLogBoundMargin relative: outside the wide interval |log u| exceeds t
+// by ~1e-12, inside the narrow one it falls short by as much, both far more than the rounding of
+// a computed log (an ulp, ~1e-16 near these bounds), so the computed log would answer the same.
+// Between them (and for NaN, 0 or negative u) the log is computed as before.
+constexpr double kLogBoundMargin = 1e-12;
+struct AbsLogBound {
+  double t = 0.0, out_lo = 0.0, out_hi = 0.0, in_lo = 0.0, in_hi = 0.0;
+  explicit AbsLogBound(double bound) : t(bound) {
+    out_lo = std::exp(-t) * (1.0 - kLogBoundMargin);
+    out_hi = std::exp(t) * (1.0 + kLogBoundMargin);
+    in_lo = std::exp(-t) * (1.0 + kLogBoundMargin);
+    in_hi = std::exp(t) * (1.0 - kLogBoundMargin);
+  }
+  bool SurelyOutside(double u) const { return u < out_lo || u > out_hi; }
+  bool Below(double u) const {  // |log u| < t
+    if (SurelyOutside(u)) return false;
+    if (u >= in_lo && u <= in_hi) return true;
+    return std::fabs(std::log(u)) < t;
+  }
+};
+
 // Best chain among candidates[idx] (idx sorted by time). Empty if none qualifies.
-Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
-                const std::vector<double>& w, const TrackOptions& o, double min_mean_weight) {
-  Chain best_chain;
-  const int m = static_cast<int>(idx.size());
-  if (m < o.min_sequence_impacts) return best_chain;
+// The dynamic programme's states over candidates[idx] (idx sorted by time), in the order they
+// are made: by their last impact k. A state depends only on the candidates up to its k, so the
+// states with k inside a prefix of idx are the prefix's own, in the same order (PickChain).
+std::vector<State> ChainStates(const std::vector<Impact>& c, const std::vector<int>& idx,
+                               const std::vector<double>& w, const TrackOptions& o) {
   std::vector<State> states;
+  const int m = static_cast<int>(idx.size());
+  if (m < o.min_sequence_impacts) return states;
   std::vector<std::vector<int>> ending(static_cast<std::size_t>(m));  // state ids ending at pos
   std::vector<double> level(static_cast<std::size_t>(m));             // dBFS
   for (int p = 0; p < m; ++p)
@@ -48,6 +75,10 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
         20.0 * std::log10(std::max(
                    c[static_cast<std::size_t>(idx[static_cast<std::size_t>(p)])].amplitude, 1e-12));
   const double two_sigma2 = 2.0 * o.ratio_sigma * o.ratio_sigma;
+  const AbsLogBound same_ratio(0.5 * o.ratio_sigma);
+  // Beyond both jump bounds a history's step is neither regular nor irregular: its log is not
+  // needed (AbsLogBound: certain from the ratio alone).
+  const AbsLogBound any_jump(std::max(o.max_log_ratio_jump, o.max_irregular_log_jump));
   for (int kp = 1; kp < m; ++kp) {
     const double tk = c[static_cast<std::size_t>(idx[static_cast<std::size_t>(kp)])].time_s;
     const double wk = w[static_cast<std::size_t>(idx[static_cast<std::size_t>(kp)])];
@@ -74,7 +105,7 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
       int nkeep = 0;
       auto offer = [&](const State& s) {
         for (int q = 0; q < nkeep; ++q)
-          if (std::fabs(std::log(s.ratio / keep_buf[q].ratio)) < 0.5 * o.ratio_sigma) {
+          if (same_ratio.Below(s.ratio / keep_buf[q].ratio)) {
             if (s.score > keep_buf[q].score) keep_buf[q] = s;
             return;
           }
@@ -95,7 +126,11 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
         s.back = prev_id;
         s.len = p.len + 1;
         const bool has_trend = !std::isnan(p.ratio);
-        const double jump = has_trend ? std::log(r / p.ratio) : 0.0;
+        double jump = 0.0;
+        if (has_trend) {
+          const double u = r / p.ratio;
+          jump = any_jump.SurelyOutside(u) ? std::numeric_limits<double>::infinity() : std::log(u);
+        }
         if (r <= o.max_ratio && std::fabs(jump) <= o.max_log_ratio_jump) {
           s.score = p.score + wk - jump * jump / two_sigma2;
           s.ratio = r;
@@ -127,17 +162,27 @@ Chain BestChain(const std::vector<Impact>& c, const std::vector<int>& idx,
           }
         }
       }
-      std::vector<State> keep(keep_buf, keep_buf + nkeep);
-      keep.push_back(fresh);
-      for (const State& s : keep) {
+      for (int q = 0; q <= nkeep; ++q) {  // the kept extensions, then the fresh start
         ending[static_cast<std::size_t>(kp)].push_back(static_cast<int>(states.size()));
-        states.push_back(s);
+        states.push_back(q < nkeep ? keep_buf[q] : fresh);
       }
     }
   }
+  return states;
+}
+
+// Best chain among candidates[idx] from the states ChainStates made for idx or for a longer
+// list that idx begins (the states past idx's last candidate are not looked at). Empty if none
+// qualifies.
+Chain PickChain(const std::vector<State>& states, const std::vector<int>& idx,
+                const std::vector<double>& w, const TrackOptions& o, double min_mean_weight) {
+  Chain best_chain;
+  const int m = static_cast<int>(idx.size());
+  if (m < o.min_sequence_impacts) return best_chain;
   int best = -1;
   for (int s = 0; s < static_cast<int>(states.size()); ++s) {
     const State& st = states[static_cast<std::size_t>(s)];
+    if (st.k >= m) break;  // made in order of k
     if (st.len < o.min_sequence_impacts) continue;
     if (best < 0 || st.score > states[static_cast<std::size_t>(best)].score) best = s;
   }
@@ -227,12 +272,21 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
     std::sort(all.begin(), all.end());
   }
   std::vector<Chain> chains;
-  std::vector<std::vector<int>> work;
-  work.push_back(std::move(all));
+  // Segments still to search, each with the states of a list it begins (ChainStates), when known:
+  // the candidates before a chain found in a segment begin that segment.
+  struct Work {
+    std::vector<int> seg;
+    std::shared_ptr<const std::vector<State>> states;
+  };
+  std::vector<Work> work;
+  work.push_back({std::move(all), nullptr});
   while (!work.empty() && static_cast<int>(chains.size()) < o.max_sequences) {
-    std::vector<int> seg = std::move(work.back());
+    std::vector<int> seg = std::move(work.back().seg);
+    std::shared_ptr<const std::vector<State>> states = std::move(work.back().states);
     work.pop_back();
-    Chain ch = BestChain(c, seg, w, o, chains.empty() ? o.min_mean_weight : o.min_mean_weight_more);
+    if (!states) states = std::make_shared<const std::vector<State>>(ChainStates(c, seg, w, o));
+    Chain ch =
+        PickChain(*states, seg, w, o, chains.empty() ? o.min_mean_weight : o.min_mean_weight_more);
     if (ch.members.empty()) continue;
     const double t0 = c[static_cast<std::size_t>(ch.members.front())].time_s;
     const double t1 = c[static_cast<std::size_t>(ch.members.back())].time_s;
@@ -241,8 +295,8 @@ std::vector<Sequence> TrackSequences(const std::vector<Impact>& c, double durati
       if (c[static_cast<std::size_t>(i)].time_s < t0) before.push_back(i);
       if (c[static_cast<std::size_t>(i)].time_s > t1) after.push_back(i);
     }
-    if (!before.empty()) work.push_back(std::move(before));
-    if (!after.empty()) work.push_back(std::move(after));
+    if (!before.empty()) work.push_back({std::move(before), states});
+    if (!after.empty()) work.push_back({std::move(after), nullptr});
     chains.push_back(std::move(ch));
   }
   std::sort(chains.begin(), chains.end(), [&](const Chain& a, const Chain& b) {

@@ -28,8 +28,10 @@
 // intervals. An OnsetDetector is not thread-safe; use one per thread.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bouncecal/acoustic/detect.hpp"
@@ -117,6 +119,26 @@ struct AicPick {
 // so the change point is located on a finer grid than the samples.
 AicPick PickAic(const std::vector<float>& x, std::size_t begin, std::size_t end, int upsample = 1);
 
+// The values v[lo], v[lo + stride], ... (indices below hi) of a window that slides forward over
+// v, kept sorted: moving to a window of the same phase (lo - previous lo a multiple of stride)
+// that overlaps the previous one removes the values that left and inserts the ones that came,
+// instead of selecting from all of them again (the adaptive threshold's running median and
+// MAD). Median() and Mad() are the values nth_element selects: the (size / 2)-th smallest (0-based)
+// of the values, and of |value - centre|.
+class SlidingSample {
+ public:
+  void Set(const std::vector<double>& v, std::size_t lo, std::size_t hi, std::size_t stride);
+  std::size_t size() const { return sorted_.size(); }
+  double Median() const;            // 0 when empty
+  double Mad(double centre) const;  // (size / 2)-th smallest |value - centre|, 0 when empty
+
+ private:
+  std::vector<double> sorted_;
+  std::vector<double> leaving_, coming_, merged_;  // scratch of a slide
+  std::size_t lo_ = 0, hi_ = 0, stride_ = 0;
+  bool valid_ = false;
+};
+
 class OnsetDetector {
  public:
   // Throws Error(kBadParameter) if options are invalid or rate_hz <= 0.
@@ -136,7 +158,7 @@ class OnsetDetector {
   std::vector<double> Novelty(const std::vector<float>& whitened) const;    // 1. flux, dB
   std::vector<double> Threshold(const std::vector<double>& novelty) const;  // 2. adaptive
   double BlockThreshold(const std::vector<double>& novelty, std::size_t centre, std::size_t win,
-                        std::vector<double>* scratch) const;
+                        SlidingSample* window) const;
   std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
                                  const std::vector<double>& threshold) const;  // 3. frames
   // 4. AIC refinement and measures at a coarse onset sample.
@@ -144,12 +166,20 @@ class OnsetDetector {
                 bool tight) const;
   // 5. Template pass: build, score, time the clear matches, search blind.
   struct TemplateMatch;
+  struct NccWindow;
+  struct NccChunks;
+  struct BlindCandidate;
   void TemplatePass(const std::vector<float>& samples, const std::vector<long>& window_lo,
                     const std::vector<long>& window_hi, OnsetResult* res) const;
   bool BuildTemplate(OnsetResult* res, TemplateMatch* m) const;
-  void TimeWithTemplate(const TemplateMatch& m, long lo, long hi, Impact* im) const;
-  void BlindTemplateSearch(const std::vector<float>& samples, const TemplateMatch& m,
-                           OnsetResult* res) const;
+  std::pair<long, long> TimingStarts(const TemplateMatch& m, long lo, long hi, double time_s) const;
+  void TimeWithTemplate(const TemplateMatch& m, const std::function<double(long)>& ncc, long lo,
+                        long hi, Impact* im) const;
+  void BlindScan(const TemplateMatch& m, NccChunks* chunks, std::size_t chunk,
+                 std::vector<BlindCandidate>* found) const;
+  void AddBlindCandidates(const std::vector<float>& samples, const TemplateMatch& m,
+                          NccChunks* chunks, const std::vector<BlindCandidate>& found,
+                          OnsetResult* res) const;
   struct Fft;
   struct Correlator;
   OnsetOptions options_;

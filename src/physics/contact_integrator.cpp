@@ -158,21 +158,20 @@ class System {
         zd_s = x[4];
       }
     }
-    S y_s;
+    ph.z = z_s * sc_.length_m;
     if (phase_ == Phase::kMiddle) {
-      y_s = x[0];
+      ph.y = x[0] * sc_.length_m;
       ph.tau = S(indep);
+      ph.delta = ph.y - ph.z;
     } else {
-      y_s = z_s + UPower(indep);
+      const double up = UPower(indep);  // delta / L
+      ph.y = (z_s + up) * sc_.length_m;
       ph.tau = x[0];
+      ph.delta = S(up * sc_.length_m);
     }
-    ph.y = y_s * sc_.length_m;
     ph.yd = x[1] * sc_.speed_m_s;
     ph.work = x[2] * sc_.energy_j;
-    ph.z = z_s * sc_.length_m;
     ph.zd = zd_s * sc_.speed_m_s;
-    ph.delta = ph.y - ph.z;
-    if (phase_ != Phase::kMiddle) ph.delta = S(UPower(indep) * sc_.length_m);
     ph.delta_dot = ph.yd - ph.zd;
     for (int i = 0; i < n_state_; ++i) ph.state[i] = x[s0_ + i] * sc_.state[i];
     return ph;
@@ -259,26 +258,59 @@ class System {
   // order, so the same values).
   template <class S>
   void BallOnly(const std::array<S, N>& x, std::array<S, N>& dx, double indep) const {
+    if (phase_ == Phase::kMiddle) return BallOnlyPhase<true, 0>(x, dx, indep);
+    return BallOnlyPhase<false, 0>(x, dx, indep);
+  }
+
+  // BallOnly in one phase, its branches resolved at compile time (kTime: the middle phase;
+  // kRoot: the root q of the u phases, 0 for any). The stepper calls it through BallRhs for the
+  // ball-only layout: no test of the layout, the phase or q per call, the same values.
+  template <bool kTime, int kRoot, class S>
+  void BallOnlyPhase(const std::array<S, N>& x, std::array<S, N>& dx, double indep) const {
     if constexpr (N > 3) {
       for (size_t i = 3; i < N; ++i) dx[i] = S(0.0);
     }
     const S yd = x[1] * sc_.speed_m_s;
-    if (phase_ == Phase::kMiddle) {
+    if constexpr (kTime) {
       const S f =
           dyn_.ForceOnBranch(Overlap(S(x[0] * sc_.length_m)), yd, nullptr, positive_branch_);
       dx[0] = x[1];
       dx[1] = accel_scale_ * (g_ - f * inv_mass_);
       dx[2] = power_scale_ * f * yd;
-      return;
+    } else {
+      const int q = kRoot > 0 ? kRoot : q_;
+      double up = 1.0;  // u^(q-1)
+      for (int i = 1; i < q; ++i) up *= indep;
+      const S delta = S(up * indep * sc_.length_m);
+      const S rho = (q * up) / x[1];
+      const S f = dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
+      dx[0] = rho;
+      dx[1] = accel_scale_ * (g_ - f * inv_mass_) * rho;
+      dx[2] = power_scale_ * f * yd * rho;
     }
-    double up = 1.0;  // u^(q-1)
-    for (int i = 1; i < q_; ++i) up *= indep;
-    const S delta = S(up * indep * sc_.length_m);
-    const S rho = (q_ * up) / x[1];
-    const S f = dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
-    dx[0] = rho;
-    dx[1] = accel_scale_ * (g_ - f * inv_mass_) * rho;
-    dx[2] = power_scale_ * f * yd * rho;
+  }
+
+  // The right-hand side as the stepper sees it, for one phase of the ball-only layout.
+  template <bool kTime, int kRoot>
+  struct BallRhs {
+    const System& sys;
+    template <class S>
+    void operator()(const std::array<S, N>& x, std::array<S, N>& dx, double indep) const {
+      sys.template BallOnlyPhase<kTime, kRoot>(x, dx, indep);
+    }
+  };
+
+  // Calls run(rhs) with the cheapest right-hand side equal to operator() in the current phase.
+  template <class Run>
+  void WithRhs(const Run& run) const {
+    if constexpr (!kBig) {
+      if (n_state_ == 0) {
+        if (phase_ == Phase::kMiddle) return run(BallRhs<true, 0>{*this});
+        if (q_ == 2) return run(BallRhs<false, 2>{*this});
+        return run(BallRhs<false, 0>{*this});
+      }
+    }
+    run(*this);
   }
 
  private:
@@ -511,7 +543,9 @@ class ContactIntegration {
   bool TryStep() {
     ++run_.steps;
     if (sys_.phase() == Phase::kExit) h_ = std::max(h_, -indep_);  // land on u = 0 exactly
-    stepper_.Step(sys_, x_, f_, indep_, h_, x_new_, f_new_, n_, sys_.StageInputs());
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Step(rhs, x_, f_, indep_, h_, x_new_, f_new_, n_, sys_.StageInputs());
+    });
     if (!AllFinite(x_new_) || !AllFinite(f_new_)) {
       // Non-finite force at a stage (e.g. a law evaluated out of its domain): smaller step.
       h_ *= 0.25;
@@ -645,7 +679,9 @@ class ContactIntegration {
   // Dense output of the step just taken ([indep_, indep_ + h_], values).
   PhysN<double, N> Dense(double at) {
     const double theta = h_ != 0.0 ? (at - indep_) / h_ : 0.0;
-    stepper_.Dense(sys_, indep_, theta, x_, x_new_, f_, f_new_, h_, xd_, n_);
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Dense(rhs, indep_, theta, x_, x_new_, f_, f_new_, h_, xd_, n_);
+    });
     return sys_.Unscale(Values(xd_), at);
   }
 
@@ -858,7 +894,9 @@ void ContactIntegration<T, N, M>::FinishAtEnd(double t, double t_end) {
   const bool force_zero_end = force_zero_end_;
   State xe = x_new_, fe = f_new_;
   if (t_end > t) {
-    stepper_.Step(sys_, x_, f_, t, t_end - t, xe, fe, n_, sys_.StageInputs());
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Step(rhs, x_, f_, t, t_end - t, xe, fe, n_, sys_.StageInputs());
+    });
     if (!AllFinite(xe)) {
       xe = x_new_;
       fe = f_new_;
@@ -896,7 +934,9 @@ template <class T, size_t N, class M>
 void ContactIntegration<T, N, M>::RestartOnOtherBranch(double t, double t_w, const State& x_dense) {
   State xw = x_dense, f_minus = f_new_;
   if (t_w > t) {
-    stepper_.Step(sys_, x_, f_, t, t_w - t, xw, f_minus, n_, sys_.StageInputs());
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Step(rhs, x_, f_, t, t_w - t, xw, f_minus, n_, sys_.StageInputs());
+    });
     if (!AllFinite(xw)) {
       xw = x_dense;
       sys_(xw, f_minus, t_w);

@@ -9,7 +9,9 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -91,6 +93,32 @@ TEST(Dopri5, ControllerGrowsBoundedAndNeverRightAfterARejection) {
   EXPECT_LE(c.Accepted(1e-6), 1.0);  // no growth right after a rejection
   EXPECT_GT(c.Accepted(1e-6), 1.0);
   EXPECT_LT(c.Accepted(0.99), 1.0);  // an error just below 1: a slightly smaller next step
+}
+
+// The controllers' 2^y takes floor(y) by truncation (no library call): the same float as
+// std::floor for every y they meet (|y| < 126), integers, negatives and -0 included; and the
+// value stays within 0.4 % of 2^y (the quadratic on [0, 1)).
+TEST(Dopri5, ApproxExp2FloorsLikeStdFloor) {
+  const auto with_std_floor = [](float y) {
+    const float n = std::floor(y);
+    const float f = y - n;
+    const float m = 1.0f + f * (0.6565f + 0.3435f * f);
+    const std::uint32_t e = static_cast<std::uint32_t>(static_cast<int>(n) + 127) << 23;
+    return std::bit_cast<float>((std::bit_cast<std::uint32_t>(m) & 0x7fffffu) | e) *
+           (m >= 2.0f ? 2.0f : 1.0f);
+  };
+  int checked = 0;
+  for (float y = -125.0f; y < 125.0f; y += 0.0078125f) {  // 2^-7 steps: integers exactly
+    for (const float v : {y, std::nextafter(y, -200.0f), std::nextafter(y, 200.0f)}) {
+      ASSERT_EQ(dopri5::ApproxExp2(v), with_std_floor(v)) << v;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(dopri5::ApproxExp2(-0.0f), with_std_floor(-0.0f));
+  EXPECT_EQ(checked, 3 * 32000);
+  for (const float y : {-20.5f, -3.25f, -1.0f, -0.1f, 0.0f, 0.7f, 5.0f, 13.9f}) {
+    EXPECT_NEAR(dopri5::ApproxExp2(y) / std::exp2(y), 1.0, 4e-3) << y;
+  }
 }
 
 TEST(Dop853, StepIsEighthOrderAndDenseOutputSeventh) {

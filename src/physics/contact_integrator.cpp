@@ -23,9 +23,10 @@ constexpr int kMaxLawState = 7;
 // Event times are located to this relative precision (in units of the contact time).
 constexpr double kEventTolerance = 1e-14;
 // Phase changes (contact_integrator.hpp). The approach phase ends once delta' < a fraction of
-// v_in (kTuning below); the exit phase starts once delta' < 0 and delta < 0.7 of its peak, and
-// is abandoned if |delta'| falls below half its value at entry. Measured on the Hertz laws
-// (bench_simulate): 0.5..0.8 give the same step counts within 5 %.
+// v_in (kTuning below); the exit phase starts once delta' < 0 and delta < 0.7 of its peak
+// (kTuning's exit_overlap_q2 for laws smooth in delta^(1/2)), and is abandoned if |delta'|
+// falls below half its value at entry. Measured on the Hertz laws (bench_simulate): 0.5..0.8
+// give the same step counts within 5 %.
 constexpr double kExitOverlapFraction = 0.7;
 constexpr double kExitSpeedFloor = 0.5;
 
@@ -57,13 +58,23 @@ constexpr double kHighOrderTolerance = 1e-7;
 //     saved a fifth of its steps and half its rejected ones.
 //   exit_first_step: the exit phase's first step against the last time step mapped to u
 //     (DOP853's was rejected at full length for the Hertz laws).
+//   exit_overlap_q2: for laws smooth in delta^(1/2) (OverlapRoot q = 2), the exit phase (u)
+//     starts once the overlap falls below this fraction of its peak (other roots: 0.7). DOP853
+//     keeps its time steps longer into the unloading than its u steps just after the switch
+//     (the exit's u steps start at ~0.6 of the time steps and grow): 0.5 takes 5 % fewer steps
+//     than 0.7 for simulate --law hunt-crossley. 0.3 took 9 % fewer, but one contact's e then
+//     stopped converging at ~1e-12 (hunt-crossley-ln at 1.5 m/s: 7.8e-13 at rtol 1e-11 against
+//     6.4e-13 at 1e-10; 0.5 falls to 1e-13 like 0.7). Not for q = 4 and 6: hertz-tsuji's
+//     impact-time error then rose from rtol 1e-8 to 1e-9 (bench_simulate: 5.1e-10 -> 6.4e-10 s
+//     at 0.3, 0.4 and 0.5), jiang-liu gained 3 %.
 struct Tuning {
-  double tolerance_scale, first_step, approach_end_speed, approach_end_overlap, exit_first_step;
+  double tolerance_scale, first_step, approach_end_speed, approach_end_overlap, exit_first_step,
+      exit_overlap_q2;
 };
 template <class M>
-inline constexpr Tuning kTuning{0.25, 0.5, 0.7, std::numeric_limits<double>::infinity(), 1.0};
+inline constexpr Tuning kTuning{0.25, 0.5, 0.7, std::numeric_limits<double>::infinity(), 1.0, 0.7};
 template <>
-inline constexpr Tuning kTuning<dop853::Method>{0.15, 2.0, 0.95, 0.25, 0.7};
+inline constexpr Tuning kTuning<dop853::Method>{0.15, 2.0, 0.95, 0.25, 0.7, 0.5};
 
 enum class Phase { kApproach, kMiddle, kExit };
 
@@ -158,21 +169,20 @@ class System {
         zd_s = x[4];
       }
     }
-    S y_s;
+    ph.z = z_s * sc_.length_m;
     if (phase_ == Phase::kMiddle) {
-      y_s = x[0];
+      ph.y = x[0] * sc_.length_m;
       ph.tau = S(indep);
+      ph.delta = ph.y - ph.z;
     } else {
-      y_s = z_s + UPower(indep);
+      const double up = UPower(indep);  // delta / L
+      ph.y = (z_s + up) * sc_.length_m;
       ph.tau = x[0];
+      ph.delta = S(up * sc_.length_m);
     }
-    ph.y = y_s * sc_.length_m;
     ph.yd = x[1] * sc_.speed_m_s;
     ph.work = x[2] * sc_.energy_j;
-    ph.z = z_s * sc_.length_m;
     ph.zd = zd_s * sc_.speed_m_s;
-    ph.delta = ph.y - ph.z;
-    if (phase_ != Phase::kMiddle) ph.delta = S(UPower(indep) * sc_.length_m);
     ph.delta_dot = ph.yd - ph.zd;
     for (int i = 0; i < n_state_; ++i) ph.state[i] = x[s0_ + i] * sc_.state[i];
     return ph;
@@ -259,26 +269,61 @@ class System {
   // order, so the same values).
   template <class S>
   void BallOnly(const std::array<S, N>& x, std::array<S, N>& dx, double indep) const {
+    if (phase_ == Phase::kMiddle) return BallOnlyPhase<true, 0>(x, dx, indep);
+    return BallOnlyPhase<false, 0>(x, dx, indep);
+  }
+
+  // BallOnly in one phase, its branches resolved at compile time (kTime: the middle phase;
+  // kRoot: the root q of the u phases, 0 for any). The stepper calls it through BallRhs for the
+  // ball-only layout: no test of the layout, the phase or q per call, the same values.
+  template <bool kTime, int kRoot, class S>
+  [[gnu::always_inline]] inline void BallOnlyPhase(const std::array<S, N>& x, std::array<S, N>& dx,
+                                                   double indep) const {
     if constexpr (N > 3) {
       for (size_t i = 3; i < N; ++i) dx[i] = S(0.0);
     }
     const S yd = x[1] * sc_.speed_m_s;
-    if (phase_ == Phase::kMiddle) {
+    if constexpr (kTime) {
       const S f =
           dyn_.ForceOnBranch(Overlap(S(x[0] * sc_.length_m)), yd, nullptr, positive_branch_);
       dx[0] = x[1];
       dx[1] = accel_scale_ * (g_ - f * inv_mass_);
       dx[2] = power_scale_ * f * yd;
-      return;
+    } else {
+      const int q = kRoot > 0 ? kRoot : q_;
+      double up = 1.0;  // u^(q-1)
+      for (int i = 1; i < q; ++i) up *= indep;
+      const S delta = S(up * indep * sc_.length_m);
+      const S rho = (q * up) / x[1];
+      const S f = dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
+      dx[0] = rho;
+      dx[1] = accel_scale_ * (g_ - f * inv_mass_) * rho;
+      dx[2] = power_scale_ * f * yd * rho;
     }
-    double up = 1.0;  // u^(q-1)
-    for (int i = 1; i < q_; ++i) up *= indep;
-    const S delta = S(up * indep * sc_.length_m);
-    const S rho = (q_ * up) / x[1];
-    const S f = dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
-    dx[0] = rho;
-    dx[1] = accel_scale_ * (g_ - f * inv_mass_) * rho;
-    dx[2] = power_scale_ * f * yd * rho;
+  }
+
+  // The right-hand side as the stepper sees it, for one phase of the ball-only layout.
+  template <bool kTime, int kRoot>
+  struct BallRhs {
+    const System& sys;
+    template <class S>
+    [[gnu::always_inline]] inline void operator()(const std::array<S, N>& x, std::array<S, N>& dx,
+                                                  double indep) const {
+      sys.template BallOnlyPhase<kTime, kRoot>(x, dx, indep);
+    }
+  };
+
+  // Calls run(rhs) with the cheapest right-hand side equal to operator() in the current phase.
+  template <class Run>
+  void WithRhs(const Run& run) const {
+    if constexpr (!kBig) {
+      if (n_state_ == 0) {
+        if (phase_ == Phase::kMiddle) return run(BallRhs<true, 0>{*this});
+        if (q_ == 2) return run(BallRhs<false, 2>{*this});
+        return run(BallRhs<false, 0>{*this});
+      }
+    }
+    run(*this);
   }
 
  private:
@@ -511,7 +556,9 @@ class ContactIntegration {
   bool TryStep() {
     ++run_.steps;
     if (sys_.phase() == Phase::kExit) h_ = std::max(h_, -indep_);  // land on u = 0 exactly
-    stepper_.Step(sys_, x_, f_, indep_, h_, x_new_, f_new_, n_, sys_.StageInputs());
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Step(rhs, x_, f_, indep_, h_, x_new_, f_new_, n_, sys_.StageInputs());
+    });
     if (!AllFinite(x_new_) || !AllFinite(f_new_)) {
       // Non-finite force at a stage (e.g. a law evaluated out of its domain): smaller step.
       h_ *= 0.25;
@@ -539,7 +586,8 @@ class ContactIntegration {
     const double rtol = kTuning<M>.tolerance_scale * options_.rel_tolerance;
     std::array<double, N> sk;
     for (size_t i = 0; i < n_; ++i) {
-      const double size = std::max({1.0, std::abs(ValueOf(x_[i])), std::abs(ValueOf(x_new_[i]))});
+      const double size =
+          std::max(1.0, std::max(std::abs(ValueOf(x_[i])), std::abs(ValueOf(x_new_[i]))));
       sk[i] = options_.abs_tolerance + rtol * size;
     }
     return stepper_.ErrorNorm(sk, n_);
@@ -641,11 +689,16 @@ class ContactIntegration {
   void RestartOnOtherBranch(double t, double t_w, const State& x_dense);
   void CheckStuck();
   bool EnterExit() const;
+  double ExitOverlapFraction() const {
+    return sys_.root() == 2 ? kTuning<M>.exit_overlap_q2 : kExitOverlapFraction;
+  }
 
   // Dense output of the step just taken ([indep_, indep_ + h_], values).
   PhysN<double, N> Dense(double at) {
     const double theta = h_ != 0.0 ? (at - indep_) / h_ : 0.0;
-    stepper_.Dense(sys_, indep_, theta, x_, x_new_, f_, f_new_, h_, xd_, n_);
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Dense(rhs, indep_, theta, x_, x_new_, f_, f_new_, h_, xd_, n_);
+    });
     return sys_.Unscale(Values(xd_), at);
   }
 
@@ -858,7 +911,9 @@ void ContactIntegration<T, N, M>::FinishAtEnd(double t, double t_end) {
   const bool force_zero_end = force_zero_end_;
   State xe = x_new_, fe = f_new_;
   if (t_end > t) {
-    stepper_.Step(sys_, x_, f_, t, t_end - t, xe, fe, n_, sys_.StageInputs());
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Step(rhs, x_, f_, t, t_end - t, xe, fe, n_, sys_.StageInputs());
+    });
     if (!AllFinite(xe)) {
       xe = x_new_;
       fe = f_new_;
@@ -896,7 +951,9 @@ template <class T, size_t N, class M>
 void ContactIntegration<T, N, M>::RestartOnOtherBranch(double t, double t_w, const State& x_dense) {
   State xw = x_dense, f_minus = f_new_;
   if (t_w > t) {
-    stepper_.Step(sys_, x_, f_, t, t_w - t, xw, f_minus, n_, sys_.StageInputs());
+    sys_.WithRhs([&](const auto& rhs) {
+      stepper_.Step(rhs, x_, f_, t, t_w - t, xw, f_minus, n_, sys_.StageInputs());
+    });
     if (!AllFinite(xw)) {
       xw = x_dense;
       sys_(xw, f_minus, t_w);
@@ -967,12 +1024,12 @@ void ContactIntegration<T, N, M>::CheckStuck() {
   if (pc.tau > options_.max_contact_time_factor) return Stuck(pc, StuckKind::kTooLong, 0.0);
 }
 
-// Time for the exit phase: the ball moves out and the overlap is below 0.7 of its peak.
+// Time for the exit phase: the ball moves out and the overlap is below a fraction of its peak.
 template <class T, size_t N, class M>
 bool ContactIntegration<T, N, M>::EnterExit() const {
   if (!use_exit_ || exit_disabled_) return false;
   return here_.delta_dot < 0.0 && here_.delta > 0.0 &&
-         here_.delta < kExitOverlapFraction * run_.peak_overlap_m;
+         here_.delta < ExitOverlapFraction() * run_.peak_overlap_m;
 }
 
 template <class T, size_t N, class M>

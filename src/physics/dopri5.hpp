@@ -217,7 +217,9 @@ inline float ApproxLog2(float x) {  // x > 0, normal
   return static_cast<float>(e) + t * (4.0f / 3.0f - t / 3.0f);
 }
 inline float ApproxExp2(float y) {  // |y| < 126
-  const float n = std::floor(y);
+  // floor(y) without the library call (|y| < 126: the truncation is exact).
+  float n = static_cast<float>(static_cast<int>(y));
+  if (n > y) n -= 1.0f;
   const float f = y - n;  // 2^f on [0, 1): 1 + f (0.6565 + 0.3435 f), in [1, 2)
   const float m = 1.0f + f * (0.6565f + 0.3435f * f);
   const std::uint32_t e = static_cast<std::uint32_t>(static_cast<int>(n) + 127) << 23;

@@ -31,10 +31,10 @@
 //     point of a step is evaluated on the branch the step started on, the switch is located,
 //     the step cut there and the integrator restarted on the other branch) and, for laws smooth
 //     in delta (q = 1) or ending at F = 0, the contact end.
-//   - exit: for laws with q > 1 ending at delta = 0, once delta' < 0 and delta < 0.7 of its
-//     peak, u again, integrated down to u = 0 exactly: the end is the end of the last step (no
-//     root finding, no step across the singular end). If delta' fades (a creeping, overdamped
-//     ball) the integrator returns to time, where the stuck tests live.
+//   - exit: for laws with q > 1 ending at delta = 0, once delta' < 0 and delta < 0.7 of its peak
+//     (0.5 with DOP853 for q = 2), u again, integrated down to u = 0 exactly: the end is the end of
+//     the last step (no root finding, no step across the singular end). If delta' fades (a
+//     creeping, overdamped ball) the integrator returns to time, where the stuck tests live.
 // Forward sensitivities (RunContact with a ContactSensitivity): the same integration in
 // SensitivityJet arithmetic (contact_dynamics.hpp) with the step sequence of the values, so the
 // derivatives are those of the computed solution; event times and phase changes carry their

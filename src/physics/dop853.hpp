@@ -161,6 +161,14 @@ inline constexpr Row kE3 = [] {
   return e;
 }();
 
+// Each row of kA and kD as an object of its own: a row is passed to RowSum as a template
+// argument, and a reference to a subobject of an array is not one clang 14 accepts (C++20
+// allows it; GCC does).
+template <size_t S>
+inline constexpr Row kARow = kA[S];
+template <size_t R>
+inline constexpr Row kDRow = kD[R];
+
 // Pointers to the stage derivatives k_0 .. k_15 of one step (k_0 = f(x), k_12 = f(x1)).
 template <class T, size_t N>
 using StagePointers = std::array<const std::array<T, N>*, kStages>;
@@ -314,7 +322,7 @@ class Stepper {
   template <size_t S, unsigned kMask, class Sys>
   void Stage(const Sys& sys, const State& x, double t, double h, const StagePointers<T, N>& k,
              State& tmp, size_t n) {
-    RowSum<kA[S], kMask>(x, h, k, tmp, n);
+    RowSum<kARow<S>, kMask>(x, h, k, tmp, n);
     sys(tmp, k_[S], t + kC[S] * h);
   }
 
@@ -334,10 +342,10 @@ class Stepper {
       ExtraStages<~0u>(sys, x, t, h, k, tmp, n);
     }
     const State zero{};
-    RowSum<kD[0]>(zero, h, k, d_[3], n);
-    RowSum<kD[1]>(zero, h, k, d_[4], n);
-    RowSum<kD[2]>(zero, h, k, d_[5], n);
-    RowSum<kD[3]>(zero, h, k, d_[6], n);
+    RowSum<kDRow<0>>(zero, h, k, d_[3], n);
+    RowSum<kDRow<1>>(zero, h, k, d_[4], n);
+    RowSum<kDRow<2>>(zero, h, k, d_[5], n);
+    RowSum<kDRow<3>>(zero, h, k, d_[6], n);
     for (size_t i = 0; i < n; ++i) {
       d_[0][i] = x1[i] - x[i];
       d_[1][i] = h * f[i] - d_[0][i];

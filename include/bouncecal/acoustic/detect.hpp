@@ -77,11 +77,11 @@ struct DetectOptions {
   // concurrency, at most kMaxAutoThreads, core/parallel.hpp). The blocks of a long recording are
   // detected concurrently (the reader stays at most one block ahead of them: at most threads + 1
   // blocks in memory), a single block's independent stages split among the threads. The result
-  // is the same, to the bit, whatever the count. Default 1: on the shared 2-core machine with
-  // both cores busy (other builds) two threads cost 20-60 % more CPU time (page faults of two
-  // blocks in flight) and more wall time; nearly idle, they cut a 10-minute recording's wall
-  // time by ~20 % for ~33 % more CPU (README, "Long recordings"). Callers that run several
-  // detections at once (a batch on --jobs workers) need 1.
+  // is the same, to the bit, whatever the count. Default 1: on the 2-core machine two threads
+  // cost 5-15 % more CPU time and gain no wall time when the other core is busy; nearly idle,
+  // they cut a 10-minute recording's wall time from ~1.1 s to ~0.7 s (README, "Long
+  // recordings"). Callers that run several detections at once (a batch on --jobs workers)
+  // need 1.
   int threads = 1;
   bool IsValid(std::string* error) const;
 };

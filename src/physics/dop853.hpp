@@ -381,44 +381,9 @@ class Stepper {
   bool dense_ready_ = false;
 };
 
-// Step-size control for DOP853 (HNW §II.10 and §IV.2, eq. 2.43c; the code's safety 0.9 and
-// step ratio in [1/3, 6], no growth right after a rejection): after a step with error norm err,
-// the factor to multiply h by, 0.9 / (err^(1/8 - 0.75 beta) / err_prev^beta) clamped. Hairer's
-// code defaults to beta = 0; beta = 0.04 (dopri5's) halved the rejected steps of the Hertz
-// contacts (bench_simulate), 0.08 made the steps collapse.
-class Controller {
- public:
-  double Accepted(double err) {
-    const float log_err = dopri5::ApproxLog2(static_cast<float>(std::clamp(err, 1e-30, 1e30)));
-    const float log_prev = previous_log_;
-    previous_log_ = std::max(log_err, kInitialLog);
-    double fac = dopri5::ApproxExp2(kExponentF * log_err - kBetaF * log_prev) / kSafety;
-    fac = 1.0 / std::clamp(fac, 1.0 / kMaxFactor, 1.0 / kMinFactor);
-    if (last_rejected_) fac = std::min(fac, 1.0);
-    last_rejected_ = false;
-    return fac;
-  }
-  double Rejected(double err) {
-    last_rejected_ = true;
-    const float log_err = dopri5::ApproxLog2(static_cast<float>(std::min(err, 1e30)));
-    const double grow = dopri5::ApproxExp2(kExponentF * log_err);
-    return 1.0 / std::min(1.0 / kMinFactor, grow / kSafety);
-  }
-  void Reset() {
-    previous_log_ = kInitialLog;
-    last_rejected_ = false;
-  }
-
- private:
-  static constexpr double kBeta = 0.04;
-  static constexpr float kBetaF = static_cast<float>(kBeta);
-  static constexpr float kExponentF = static_cast<float>(1.0 / 8 - 0.75 * kBeta);
-  static constexpr double kSafety = 0.9;
-  static constexpr double kMinFactor = 1.0 / 3.0, kMaxFactor = 6.0;
-  static constexpr float kInitialLog = -13.287712f;  // log2(1e-4): the memory at the start
-  float previous_log_ = kInitialLog;
-  bool last_rejected_ = false;
-};
+// Step-size control for DOP853 (HNW §II.10 and §IV.2; the code's safety 0.9 and step ratio in
+// [1/3, 6], no growth right after a rejection): dopri5's PI controller for order 8.
+using Controller = dopri5::PiController<8, 3, 6>;
 
 // The method as the contact integrator sees it.
 struct Method {

@@ -223,13 +223,9 @@ bool LooksLikeMpegAudio(const fs::path& p) {
 
 }  // namespace
 
-// The smallest and the largest of x[0, n) (n > 0, no NaN: the reader checked), eight lanes at a
-// time (GCC/Clang vector extension; std::minmax_element's loop is not vectorised). Only the
-// values are used, and min and max do not depend on the order they are taken in.
-namespace {
+// See avx2_clones.hpp (the reader calls it after its finite check).
 BOUNCECAL_AVX2_CLONES
 void MinMax(const float* x, std::size_t n, float* lo, float* hi) {
-  typedef float Float8 __attribute__((vector_size(32)));
   float mn = x[0], mx = x[0];
   std::size_t i = 0;
   if (n >= 8) {
@@ -254,7 +250,6 @@ void MinMax(const float* x, std::size_t n, float* lo, float* hi) {
   *lo = mn;
   *hi = mx;
 }
-}  // namespace
 
 // Clipping of one channel, kept up to date block by block (AnalyzeClipping's rule without
 // knowing the channel's extremes in advance): per side, the extreme so far and the runs of

@@ -23,3 +23,19 @@
 #else
 #define BOUNCECAL_AVX2_CLONES
 #endif
+
+#include <cstddef>
+
+namespace bouncecal {
+
+// Lanes of the GCC/Clang vector extension (lane-wise IEEE operations: one AVX2 register, or two
+// SSE2 ones in the baseline copy), loaded from unaligned memory with memcpy.
+typedef float Float8 __attribute__((vector_size(32)));
+typedef double Double4 __attribute__((vector_size(32)));
+
+// The smallest and the largest of x[0, n) (n > 0, no NaN), eight lanes at a time (audio.cpp;
+// std::minmax_element's loop is not vectorised). min and max do not depend on the order they
+// are taken in.
+void MinMax(const float* x, std::size_t n, float* lo, float* hi);
+
+}  // namespace bouncecal

@@ -619,26 +619,13 @@ struct BlockResult {
   std::vector<std::optional<SignalDetection>> found;
 };
 
-// max |x[i]| over x[0, n) (0 when empty), eight float lanes at a time (GCC/Clang vector
-// extension): the same value as the largest of the doubles (the conversion is exact and keeps
-// the order), without a scalar conversion per sample.
-BOUNCECAL_AVX2_CLONES
+// max |x[i]| over x[0, n) (0 when empty) = max(-min, max), from the reader's vectorised MinMax:
+// the same value as the largest of the doubles (the conversion is exact and keeps the order).
 double MaxAbs(const float* x, std::size_t n) {
-  typedef float Float8 __attribute__((vector_size(32)));
-  float peak = 0.0f;
-  std::size_t i = 0;
-  if (n >= 8) {
-    Float8 m = {0, 0, 0, 0, 0, 0, 0, 0};
-    for (; i + 8 <= n; i += 8) {
-      Float8 v;
-      std::memcpy(&v, x + i, sizeof v);
-      v = v < 0 ? -v : v;
-      m = v > m ? v : m;
-    }
-    for (int q = 0; q < 8; ++q) peak = std::max(peak, m[q]);
-  }
-  for (; i < n; ++i) peak = std::max(peak, std::fabs(x[i]));
-  return static_cast<double>(peak);
+  if (n == 0) return 0.0;
+  float lo, hi;
+  MinMax(x, n, &lo, &hi);
+  return static_cast<double>(std::max(0.0f, std::max(-lo, hi)));  // +0 for an all-zero block
 }
 
 // Every candidate signal of one block through DetectInSignal (at most at kMaxAnalysisRateHz).

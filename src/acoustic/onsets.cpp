@@ -170,9 +170,7 @@ namespace {
 // The hot loops of Whiten, compiled for AVX2 and for the baseline x86-64 (avx2_clones.hpp): the
 // same float multiplications and additions lane by lane, 8 lanes per instruction instead of 4.
 
-// Eight float lanes (GCC/Clang vector extension): lane-wise IEEE multiplications and additions,
-// one AVX2 register or two SSE2 ones. Loaded from unaligned memory with memcpy.
-typedef float Float8 __attribute__((vector_size(32)));
+// Eight float lanes (Float8, avx2_clones.hpp), loaded from unaligned memory with memcpy.
 #define BOUNCECAL_LOAD8(v, p) std::memcpy(&(v), (p), sizeof(Float8))
 
 // The float partial sums of one lag over [s, e) (i0 = max(s, l)) added up in double: the tail
@@ -614,7 +612,6 @@ namespace {
 // of the frames; in_rows / out_rows: the rows entering / leaving the reference after frame
 // t + j; ring_rows: where the frames are kept (written last: they replace rows that leave).
 constexpr std::size_t kNoveltyBatch = 8;
-typedef double Double4 __attribute__((vector_size(32)));
 BOUNCECAL_AVX2_CLONES
 void NoveltyFrames(const double* pw, std::size_t bins, double* ref, double inv_ref,
                    const double* const* in_rows, const double* const* out_rows,

@@ -101,8 +101,7 @@ BOUNCECAL_AVX2_CLONES double Dot(const double* a, const float* b, std::size_t n)
 // its own four partial sums (one 4-lane register) fed in the same order, and its tail and final
 // additions are Dot's; running four side by side overlaps their additions (one Dot alone is a
 // chain of dependent ones). Four-lane vectors of the GCC/Clang vector extension (lane-wise IEEE
-// operations, one AVX2 register or two SSE2 ones).
-typedef double Double4 __attribute__((vector_size(32)));
+// operations, one AVX2 register or two SSE2 ones: Double4, avx2_clones.hpp).
 [[gnu::always_inline]] inline void Dot4Body(const double* const* a, const double* const* b,
                                             const std::size_t* n, double* out) {
   std::size_t common = std::min(std::min(n[0], n[1]), std::min(n[2], n[3]));

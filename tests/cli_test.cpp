@@ -313,5 +313,37 @@ TEST_F(CliTest, AnalyzeCsvAndTable) {
   EXPECT_EQ(both.out, "");
 }
 
+// The simulate table is written without printf (cmd_simulate.cpp: integer digits where that is
+// provably printf's rounding, to_chars otherwise): every row must be what
+// "%5zu %14.9f %11.6f %11.6f %9.6f %11.4f %12.5f %11.4g %6d" prints of the same impact, read
+// back from --json (shortest round-trip numbers: the same doubles). Hunt-Crossley's 10 000
+// contacts run e towards 1 and v_in towards 1e-4 m/s, so the fields cross many magnitudes and
+// rounding ties.
+TEST_F(CliTest, SimulateTableIsWhatPrintfPrints) {
+  const RunResult js = Run("simulate --law hunt-crossley --json");
+  ASSERT_EQ(js.exit_code, 0) << js.err;
+  const nlohmann::json impacts = nlohmann::json::parse(js.out)["impacts"];
+  const RunResult table = Run("simulate --law hunt-crossley");
+  ASSERT_EQ(table.exit_code, 0) << table.err;
+  std::istringstream lines(table.out);
+  std::string line;
+  while (std::getline(lines, line) && line.find("time_s") == std::string::npos) {
+  }
+  ASSERT_GT(impacts.size(), 1000u);
+  size_t rows = 0, mismatches = 0;
+  for (size_t k = 0; k < impacts.size() && std::getline(lines, line); ++k, ++rows) {
+    const nlohmann::json& i = impacts[k];
+    const double v_in = i["v_in_m_s"].get<double>(), v_out = i["v_out_m_s"].get<double>();
+    char expected[256];
+    std::snprintf(expected, sizeof expected,
+                  "%5zu %14.9f %11.6f %11.6f %9.6f %11.4f %12.5f %11.4g %6d", k,
+                  i["time_s"].get<double>(), v_in, v_out, v_in > 0.0 ? v_out / v_in : 0.0,
+                  i["contact_s"].get<double>() * 1e6, i["peak_overlap_m"].get<double>() * 1e6,
+                  i["peak_force_n"].get<double>(), i["steps"].get<int>());
+    if (line != expected && ++mismatches <= 5) ADD_FAILURE() << line << "\n" << expected;
+  }
+  EXPECT_EQ(rows, impacts.size());
+  EXPECT_EQ(mismatches, 0u);
+}
 }  // namespace
 }  // namespace bouncecal

@@ -31,4 +31,6 @@ double ContactDynamics::InternalEnergy(const double*) const { return 0.0; }
 
 bool ContactDynamics::ElasticPowerLaw(double*, double*) const { return false; }
 
+bool ContactDynamics::InlineHertzDamper(HertzDamper*) const { return false; }
+
 }  // namespace bouncecal

@@ -22,6 +22,9 @@ using scalar::Quotient;
 constexpr int kMaxLawState = 7;
 // Event times are located to this relative precision (in units of the contact time).
 constexpr double kEventTolerance = 1e-14;
+// Maxima (of the overlap, of the force) are located to this fraction of their step: the value
+// there is quadratic in the time error.
+constexpr double kPeakTolerance = 1e-8;
 // Phase changes (contact_integrator.hpp). The approach phase ends once delta' < a fraction of
 // v_in (kTuning below); the exit phase starts once delta' < 0 and delta < 0.7 of its peak
 // (kTuning's exit_overlap_q2 for laws smooth in delta^(1/2)), and is abandoned if |delta'|
@@ -127,6 +130,7 @@ class System {
         plate_(plate),
         sc_(scales),
         n_state_(dyn.StateSize()),
+        inline_force_(dyn.InlineHertzDamper(&hertz_damper_)),
         continues_(dyn.ContinuesBelowZero()),
         s0_(kBig ? 5 : 3),
         inv_mass_(1.0 / body.mass_kg),
@@ -269,14 +273,29 @@ class System {
   // order, so the same values).
   template <class S>
   void BallOnly(const std::array<S, N>& x, std::array<S, N>& dx, double indep) const {
-    if (phase_ == Phase::kMiddle) return BallOnlyPhase<true, 0>(x, dx, indep);
-    return BallOnlyPhase<false, 0>(x, dx, indep);
+    if (phase_ == Phase::kMiddle) return BallOnlyPhase<true, 0, false>(x, dx, indep);
+    return BallOnlyPhase<false, 0, false>(x, dx, indep);
+  }
+
+  // The law's force on the current branch in the ball-only layout (no state). kInline: the law's
+  // force is HertzDamper's, inlined here in double (the law computes it with the same function:
+  // the same values, and the same as the sensitivity run's). A step is a chain of dependent
+  // stages and its time is that chain more than its instructions: simulate --law hunt-crossley
+  // took 11 % fewer instructions and 4 % less time than with the virtual call.
+  template <bool kInline, class S>
+  [[gnu::always_inline]] inline S BallForce(const S& delta, const S& yd) const {
+    if constexpr (kInline && std::is_same_v<S, double>) {
+      return hertz_damper_(Overlap(delta), yd);
+    } else {
+      return dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
+    }
   }
 
   // BallOnly in one phase, its branches resolved at compile time (kTime: the middle phase;
-  // kRoot: the root q of the u phases, 0 for any). The stepper calls it through BallRhs for the
-  // ball-only layout: no test of the layout, the phase or q per call, the same values.
-  template <bool kTime, int kRoot, class S>
+  // kRoot: the root q of the u phases, 0 for any; kInline: BallForce's). The stepper calls it
+  // through BallRhs for the ball-only layout: no test of the layout, the phase or q per call,
+  // the same values.
+  template <bool kTime, int kRoot, bool kInline, class S>
   [[gnu::always_inline]] inline void BallOnlyPhase(const std::array<S, N>& x, std::array<S, N>& dx,
                                                    double indep) const {
     if constexpr (N > 3) {
@@ -284,8 +303,7 @@ class System {
     }
     const S yd = x[1] * sc_.speed_m_s;
     if constexpr (kTime) {
-      const S f =
-          dyn_.ForceOnBranch(Overlap(S(x[0] * sc_.length_m)), yd, nullptr, positive_branch_);
+      const S f = BallForce<kInline>(S(x[0] * sc_.length_m), yd);
       dx[0] = x[1];
       dx[1] = accel_scale_ * (g_ - f * inv_mass_);
       dx[2] = power_scale_ * f * yd;
@@ -295,7 +313,7 @@ class System {
       for (int i = 1; i < q; ++i) up *= indep;
       const S delta = S(up * indep * sc_.length_m);
       const S rho = (q * up) / x[1];
-      const S f = dyn_.ForceOnBranch(Overlap(delta), yd, nullptr, positive_branch_);
+      const S f = BallForce<kInline>(delta, yd);
       dx[0] = rho;
       dx[1] = accel_scale_ * (g_ - f * inv_mass_) * rho;
       dx[2] = power_scale_ * f * yd * rho;
@@ -303,13 +321,13 @@ class System {
   }
 
   // The right-hand side as the stepper sees it, for one phase of the ball-only layout.
-  template <bool kTime, int kRoot>
+  template <bool kTime, int kRoot, bool kInline>
   struct BallRhs {
     const System& sys;
     template <class S>
     [[gnu::always_inline]] inline void operator()(const std::array<S, N>& x, std::array<S, N>& dx,
                                                   double indep) const {
-      sys.template BallOnlyPhase<kTime, kRoot>(x, dx, indep);
+      sys.template BallOnlyPhase<kTime, kRoot, kInline>(x, dx, indep);
     }
   };
 
@@ -318,12 +336,17 @@ class System {
   void WithRhs(const Run& run) const {
     if constexpr (!kBig) {
       if (n_state_ == 0) {
-        if (phase_ == Phase::kMiddle) return run(BallRhs<true, 0>{*this});
-        if (q_ == 2) return run(BallRhs<false, 2>{*this});
-        return run(BallRhs<false, 0>{*this});
+        if (inline_force_) return WithBallRhs<true>(run);
+        return WithBallRhs<false>(run);
       }
     }
     run(*this);
+  }
+  template <bool kInline, class Run>
+  void WithBallRhs(const Run& run) const {
+    if (phase_ == Phase::kMiddle) return run(BallRhs<true, 0, kInline>{*this});
+    if (q_ == 2) return run(BallRhs<false, 2, kInline>{*this});
+    run(BallRhs<false, 0, kInline>{*this});
   }
 
  private:
@@ -339,6 +362,8 @@ class System {
   const PlateModel* plate_;
   Scales sc_;
   int n_state_;
+  HertzDamper hertz_damper_;  // the law's force, if it is this form (inline_force_)
+  bool inline_force_;
   bool continues_;
   size_t s0_;
   // Constant factors of the right-hand side (multiplications instead of divisions per call).
@@ -570,10 +595,11 @@ class ContactIntegration {
       }
       return false;
     }
-    const double e = ErrorNorm();
-    if (!(e <= 1.0)) {
+    // Accepted if the norm is <= 1: decided, and the next step sized, from its square.
+    const dopri5::ErrorSquared e = SquaredErrorNorm();
+    if (!(e.num <= e.den)) {
       ++run_.rejected;
-      h_ *= controller_.Rejected(e);
+      h_ *= controller_.Rejected(std::sqrt(e.num / e.den));
       return false;
     }
     h_next_ = h_ * controller_.Accepted(e);
@@ -581,8 +607,8 @@ class ContactIntegration {
   }
 
   // The stepper's norm of err_i / (atol + tolerance_scale rtol max(1, |x_i|, |x_new_i|)) over the
-  // active scaled variables.
-  double ErrorNorm() const {
+  // active scaled variables, squared.
+  dopri5::ErrorSquared SquaredErrorNorm() const {
     const double rtol = kTuning<M>.tolerance_scale * options_.rel_tolerance;
     std::array<double, N> sk;
     for (size_t i = 0; i < n_; ++i) {
@@ -590,7 +616,7 @@ class ContactIntegration {
           std::max(1.0, std::max(std::abs(ValueOf(x_[i])), std::abs(ValueOf(x_new_[i]))));
       sk[i] = options_.abs_tolerance + rtol * size;
     }
-    return stepper_.ErrorNorm(sk, n_);
+    return stepper_.SquaredError(sk, n_);
   }
 
   // Accepts the step to x_new_, whose physical view is `end`.
@@ -830,7 +856,10 @@ void ContactIntegration<T, N, M>::TrackPeaks(double a, double b, const PhysN<dou
   run_.peak_overlap_m = std::max(run_.peak_overlap_m, pb.delta);
   run_.peak_force_n = std::max(run_.peak_force_n, fb);
   if (sys_.phase() == Phase::kMiddle && pa.delta_dot > 0.0 && pb.delta_dot <= 0.0) {
-    const double tol = kEventTolerance * std::max(1.0, b);
+    // The overlap is stationary there: a time error dt moves it by delta'' dt^2 / 2, so 1e-8 of
+    // the step leaves it within ~1e-16 of the contact's scale (the event tolerance, 1e-14 of the
+    // contact time, took three times the dense evaluations for digits nothing reads).
+    const double tol = kPeakTolerance * std::abs(b - a);
     auto gv = [&](double at) { return Dense(at).delta_dot; };
     const PhysN<double, N> pm = Dense(LocateRoot(gv, a, b, pa.delta_dot, pb.delta_dot, tol));
     run_.peak_overlap_m = std::max(run_.peak_overlap_m, pm.delta);

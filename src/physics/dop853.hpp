@@ -290,6 +290,11 @@ class Stepper {
   // The error of the last step in the norm with per-component scales sk (atol + rtol size):
   // <= 1 accepts the step.
   double ErrorNorm(const std::array<double, N>& sk, size_t n) const {
+    const dopri5::ErrorSquared e = SquaredError(sk, n);
+    return std::sqrt(e.num / e.den);
+  }
+  // Its square, h^2 e5^2 / (n deno) as num / den.
+  dopri5::ErrorSquared SquaredError(const std::array<double, N>& sk, size_t n) const {
     double e5 = 0.0, e3 = 0.0;
     for (size_t i = 0; i < n; ++i) {
       const double r5 = err5_[i] / sk[i], r3 = err3_[i] / sk[i];
@@ -298,7 +303,8 @@ class Stepper {
     }
     double deno = e5 + 0.01 * e3;
     if (!(deno > 0.0)) deno = 1.0;
-    return std::abs(h_) * e5 / std::sqrt(static_cast<double>(n) * deno);
+    const double he5 = h_ * e5;
+    return {he5 * he5, static_cast<double>(n) * deno};
   }
 
   // The continuous extension of the last Step (x -> x1 over h from t, derivatives f, f1) at

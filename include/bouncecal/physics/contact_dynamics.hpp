@@ -20,6 +20,8 @@
 
 #include <ceres/jet.h>
 
+#include <cmath>
+
 #include "bouncecal/physics/contact_law.hpp"
 
 namespace bouncecal {
@@ -29,6 +31,21 @@ namespace bouncecal {
 inline constexpr int kSensitivityDirections = 8;
 inline constexpr int kMaxSensitivityParameters = kSensitivityDirections - 1;
 using SensitivityJet = ceres::Jet<double, kSensitivityDirections>;
+
+// Hertz's force with Hunt-Crossley damping, F = k delta^(3/2) (1 + alpha delta'), and 0 where
+// delta <= 0 or the factor 1 + alpha delta' <= 0 (N; delta in m, delta' in m/s). One
+// definition for the law and for the integrator, which inlines it into its stages
+// (ContactDynamics::InlineHertzDamper): the same operations in the same order either way.
+struct HertzDamper {
+  double k = 0.0;      // N/m^1.5
+  double alpha = 0.0;  // s/m
+  double operator()(double delta_m, double delta_dot_m_s) const {
+    if (!(delta_m > 0.0)) return 0.0;
+    const double factor = 1.0 + alpha * delta_dot_m_s;
+    if (!(factor > 0.0)) return 0.0;
+    return k * (delta_m * std::sqrt(delta_m)) * factor;
+  }
+};
 
 class ContactDynamics {
  public:
@@ -84,6 +101,10 @@ class ContactDynamics {
   // estimate then solves ElasticEnergy(delta_max) = m v^2 / 2 in closed form instead of by a
   // search. Default: false (not known to be a power law).
   virtual bool ElasticPowerLaw(double* coefficient, double* exponent) const;
+  // The force as the contact integrator may inline it into its stages, when the law's force is
+  // this closed form in double (no state, no switch): the Hunt-Crossley family at n = 1.5.
+  // Default: false.
+  virtual bool InlineHertzDamper(HertzDamper* form) const;
 
   // The force on the branch the state is on.
   double Force(double delta_m, double delta_dot_m_s, const double* state) const {

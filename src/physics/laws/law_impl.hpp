@@ -10,6 +10,7 @@
 //   double ElasticEnergy(const Constants<double>&, double delta, const double* state) const;
 // and, where it has them (defaults below): kStateSize, StateRate, InternalEnergy, StateScale,
 // ElasticPowerLaw (the elastic energy's coefficient and exponent, if it is a power law),
+// InlineHertzDamper (the force is HertzDamper's closed form: the integrator inlines it),
 // kHasSwitch + Switch (+ AtSwitch, a state update at the switch), kOverlapRoot,
 // kContinuesBelowZero (a formula that stays smooth for delta < 0); the closed
 // forms its row lists, as the ContactLaw overrides.
@@ -84,6 +85,10 @@ class LawImpl : public LawBase {
   bool ElasticPowerLaw(const C&, double*, double*) const {
     return false;
   }
+  template <class C>
+  bool InlineHertzDamper(const C&, HertzDamper*) const {
+    return false;
+  }
 };
 
 // The ContactDynamics of law L: its constants prepared once, in double and (with the
@@ -140,6 +145,9 @@ class DynamicsOf final : public ContactDynamics {
   }
   bool ElasticPowerLaw(double* coefficient, double* exponent) const override {
     return law_.ElasticPowerLaw(c_, coefficient, exponent);
+  }
+  bool InlineHertzDamper(HertzDamper* form) const override {
+    return law_.InlineHertzDamper(c_, form);
   }
 
  private:

@@ -276,6 +276,53 @@ TEST(HuntCrossley, VariantsMissTheirTarget) {
               got["hunt-crossley-hc"], got["hunt-crossley-ln"], got["hunt-crossley-flores"]);
 }
 
+// The integrator inlines the force of the Hunt-Crossley family at n = 1.5 (HertzDamper): the
+// form it is given carries each variant's k and alpha (alpha from the variant's own formula,
+// written out here), gives the law's force to the bit in double and in the sensitivity type
+// (whose value is computed by the law's general code), at and around delta = 0 and where the
+// damping factor turns negative; and no form is given at another exponent or by another law.
+TEST(HuntCrossley, InlinedForceIsTheLawsForceAndOnlyAtHertzExponent) {
+  const ContactBody body = BodyFromScene(SteelScene());
+  const double e = 0.8, v0 = 1.5;
+  const std::map<std::string, double> alpha_of = {
+      {"hunt-crossley-hc", 3.0 * (1.0 - e) / (2.0 * v0)},
+      {"hunt-crossley-ln", 3.0 * (1.0 - e * e) / (4.0 * v0)},
+      {"hunt-crossley-flores", 8.0 * (1.0 - e) / (5.0 * e * v0)},
+      {"hunt-crossley", 0.3}};
+  for (const auto& [name, alpha] : alpha_of) {
+    SCOPED_TRACE(name);
+    auto law = name == "hunt-crossley" ? Make(name, {{"alpha", alpha}})
+                                       : Make(name, {{"e", e}, {"v0", v0}});
+    const std::vector<double> p = law->ParameterValues();
+    const auto dyn = law->Dynamics(p, body);
+    HertzDamper form;
+    ASSERT_TRUE(dyn->InlineHertzDamper(&form));
+    EXPECT_EQ(form.k, p[0]);
+    EXPECT_NEAR(form.alpha, alpha, 1e-15 * alpha);
+    for (double delta : {-1e-6, 0.0, 1e-12, 3e-7, 2e-5}) {
+      for (double rate : {-2.0 / alpha, -1.0 / alpha, -0.5, 0.0, 1.98}) {
+        const double f = form(delta, rate);
+        EXPECT_EQ(f, dyn->Force(delta, rate, nullptr)) << delta << " " << rate;
+        EXPECT_EQ(f,
+                  dyn->ForceOnBranch(SensitivityJet(delta), SensitivityJet(rate), nullptr, true).a)
+            << delta << " " << rate;
+        const double expected =
+            delta > 0.0 ? std::max(0.0, p[0] * std::pow(delta, 1.5) * (1.0 + alpha * rate)) : 0.0;
+        EXPECT_NEAR(f, expected, 1e-15 * expected) << delta << " " << rate;
+      }
+    }
+  }
+  auto other_n = Make("hunt-crossley", {{"n", 1.2}});
+  HertzDamper form;
+  EXPECT_FALSE(other_n->Dynamics(other_n->ParameterValues(), body)->InlineHertzDamper(&form));
+  for (const LawInfo& info : RegisteredLaws()) {
+    if (info.needs_expression || info.name.rfind("hunt-crossley", 0) == 0) continue;
+    auto law = Make(info.name, {});
+    EXPECT_FALSE(law->Dynamics(law->ParameterValues(), body)->InlineHertzDamper(&form))
+        << info.name;
+  }
+}
+
 TEST(HuntCrossley, SmallDampingLimitAndSpeedDependence) {
   // e ~ 1 - (2/3) alpha v for small alpha v (Hunt & Crossley 1975); e depends on alpha v only.
   const ContactBody body = BodyFromScene(SteelScene());

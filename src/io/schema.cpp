@@ -99,12 +99,15 @@ json FailedInputJson(const std::string& file, ErrorCode code, const std::string&
 }
 
 json ImpactJson(const Impact& i) {
-  return {{"time_s", i.time_s},
-          {"time_sigma_s", JsonNumber(i.sigma_s)},
-          {"amplitude", JsonNumber(i.amplitude)},
-          {"snr_db", JsonNumber(i.snr_db)},
-          {"score", JsonNumber(i.score)},
-          {"clipped", i.clipped}};
+  // Members set in place (long recordings list thousands of impacts; see SimulationJson).
+  json o(json::value_t::object);
+  o["time_s"] = i.time_s;
+  o["time_sigma_s"] = JsonNumber(i.sigma_s);
+  o["amplitude"] = JsonNumber(i.amplitude);
+  o["snr_db"] = JsonNumber(i.snr_db);
+  o["score"] = JsonNumber(i.score);
+  o["clipped"] = i.clipped;
+  return o;
 }
 
 json SceneJson(const Scene& s, const SceneJsonOptions& options) {
@@ -250,7 +253,7 @@ json AnalysisJson(const std::string& file, const DetectionResult& det, int seque
     e_min = std::isfinite(e_min) ? std::min(e_min, b.e) : b.e;
     e_max = std::isfinite(e_max) ? std::max(e_max, b.e) : b.e;
   }
-  j["bounces"] = bounces;
+  j["bounces"] = std::move(bounces);
   const bool height = options.drop_known && scene.drop.height_m.has_value();
   j["summary"] = {{"mean_eta_first3", JsonNumber(an.mean_eta_first3)},
                   {"mean_eta_first3_sigma", JsonNumber(an.mean_eta_first3_sigma)},
@@ -280,20 +283,25 @@ json SimulationJson(const Scene& scene, const ContactLaw& law, const std::vector
   j["schema"] = kSimulationSchema;
   j["scene"] = SceneJson(scene);
   j["law"] = LawJson(law, values, scene.law.expression);
+  // Each impact's members set in place, the array moved in: the initializer-list form (every
+  // member built as a two-element array first) and the copy into j took 240 M instructions
+  // for simulate --json's 10 000 impacts, more than the dump; the same document.
   json impacts = json::array();
+  impacts.get_ref<json::array_t&>().reserve(s.impacts.size());
   for (size_t k = 0; k < s.impacts.size(); ++k) {
     const SimImpact& i = s.impacts[k];
-    impacts.push_back({{"index", k},
-                       {"time_s", i.time_s},
-                       {"v_in_m_s", i.v_in_m_s},
-                       {"v_out_m_s", i.v_out_m_s},
-                       {"e", i.v_in_m_s > 0.0 ? json(i.v_out_m_s / i.v_in_m_s) : json(nullptr)},
-                       {"contact_s", i.contact_s},
-                       {"peak_overlap_m", i.peak_overlap_m},
-                       {"peak_force_n", i.peak_force_n},
-                       {"steps", i.steps}});
+    json& o = impacts.emplace_back(json::value_t::object);
+    o["index"] = k;
+    o["time_s"] = i.time_s;
+    o["v_in_m_s"] = i.v_in_m_s;
+    o["v_out_m_s"] = i.v_out_m_s;
+    o["e"] = i.v_in_m_s > 0.0 ? json(i.v_out_m_s / i.v_in_m_s) : json(nullptr);
+    o["contact_s"] = i.contact_s;
+    o["peak_overlap_m"] = i.peak_overlap_m;
+    o["peak_force_n"] = i.peak_force_n;
+    o["steps"] = i.steps;
   }
-  j["impacts"] = impacts;
+  j["impacts"] = std::move(impacts);
   const EnergyLedger& e = s.energy;
   j["energy"] = {{"initial_j", e.initial_j},
                  {"final_mechanical_j", e.final_mechanical_j},
@@ -358,7 +366,7 @@ json CalibrationJson(const Calibration& c, const Provenance& prov, const json& o
                   {"e", JsonNumber(pt.e)},
                   {"e_sigma", JsonNumber(pt.sigma)}});
   }
-  j["e_of_v"] = ev;
+  j["e_of_v"] = std::move(ev);
   j["fit"] = {{"strategy", FitStrategyName(c.strategy)},
               {"derivatives", DerivativeModeName(c.derivatives)},
               {"analytic_jacobian", c.analytic_jacobian},
@@ -399,9 +407,9 @@ json CalibrationJson(const Calibration& c, const Provenance& prov, const json& o
       jr["time_origin_s"] = JsonNumber(r.time_origin_s);
       jr["time_origin_sigma_s"] = JsonNumber(r.time_origin_sigma_s);
     }
-    recs.push_back(jr);
+    recs.push_back(std::move(jr));
   }
-  j["recordings"] = recs;
+  j["recordings"] = std::move(recs);
   j["warnings"] = WarningsJson(c.warnings);
   j["assumed"] = json::array();  // the CLI lists the defaults it used
   j["scene"] = SceneJson(c.scene, {.drop_known = c.scene.drop.height_m.has_value() ||
@@ -436,9 +444,9 @@ json LawComparisonJson(const std::vector<LawComparisonRow>& rows, const Provenan
     l["adequate"] = r.adequate;
     l["rank"] = r.adequate ? json(++rank) : json(nullptr);
     l["delta_aic"] = JsonNumber(r.delta_aic);
-    laws.push_back(l);
+    laws.push_back(std::move(l));
   }
-  j["laws"] = laws;
+  j["laws"] = std::move(laws);
   j["assumed"] = assumed.is_array() ? assumed : json::array();
   return j;
 }

@@ -37,6 +37,18 @@ struct Harmonic {
   }
 };
 
+// Errors of one step from (0, 1) on y = sin t, at its end and at mid-step on the dense output
+// (run(h, x, f, x1, mid) takes the step and evaluates the dense output at theta = 1/2).
+template <class Run>
+std::pair<double, double> SineErrors(double h, const Run& run) {
+  const State2 x{0.0, 1.0};
+  State2 f, x1, mid;
+  Harmonic()(x, f, 0.0);
+  run(h, x, f, x1, mid);
+  return {std::hypot(x1[0] - std::sin(h), x1[1] - std::cos(h)),
+          std::hypot(mid[0] - std::sin(0.5 * h), mid[1] - std::cos(0.5 * h))};
+}
+
 TEST(Dopri5, OneStepEqualsBoostOdeintsDopri5) {
   dopri5::Stepper<double, 2> mine;
   boost::numeric::odeint::runge_kutta_dopri5<State2> reference;
@@ -59,28 +71,25 @@ TEST(Dopri5, OneStepEqualsBoostOdeintsDopri5) {
 TEST(Dopri5, StepIsFifthOrderAndDenseOutputFourth) {
   // Local errors from y = sin t (both components): the step O(h^6), the dense output at
   // mid-step O(h^5): halving h divides them by ~64 and ~32.
-  const State2 x{0.0, 1.0};
-  State2 f;
-  Harmonic()(x, f, 0.0);
   double step_prev = 0.0, dense_prev = 0.0;
   for (double h : {0.4, 0.2, 0.1}) {
-    dopri5::Stepper<double, 2> s;
-    State2 x1, f1, mid;
-    std::array<double, 2> err;
-    s.Step(Harmonic(), x, f, 0.0, h, x1, f1, err, 2);
-    s.Dense(0.5, x, x1, f, f1, h, mid, 2);
-    const double step_err = std::hypot(x1[0] - std::sin(h), x1[1] - std::cos(h));
-    const double dense_err = std::hypot(mid[0] - std::sin(0.5 * h), mid[1] - std::cos(0.5 * h));
+    const auto [step_err, dense_err] =
+        SineErrors(h, [](double step, const State2& x, const State2& f, State2& x1, State2& mid) {
+          dopri5::Stepper<double, 2> s;
+          State2 f1, end;
+          std::array<double, 2> err;
+          s.Step(Harmonic(), x, f, 0.0, step, x1, f1, err, 2);
+          s.Dense(0.5, x, x1, f, f1, step, mid, 2);
+          // The dense output reproduces both ends exactly.
+          s.Dense(1.0, x, x1, f, f1, step, end, 2);
+          EXPECT_EQ(end[0], x1[0]);
+        });
     if (step_prev > 0.0) {
       EXPECT_NEAR(std::log2(step_prev / step_err), 6.0, 0.3) << h;
       EXPECT_NEAR(std::log2(dense_prev / dense_err), 5.0, 0.3) << h;
     }
     step_prev = step_err;
     dense_prev = dense_err;
-    // The dense output reproduces both ends exactly.
-    State2 end;
-    s.Dense(1.0, x, x1, f, f1, h, end, 2);
-    EXPECT_EQ(end[0], x1[0]);
   }
 }
 
@@ -125,17 +134,21 @@ TEST(Dop853, StepIsEighthOrderAndDenseOutputSeventh) {
   // Local errors from y = sin t (both components): the step O(h^9), the dense output at
   // mid-step O(h^8): halving h divides them by ~512 and ~256 (measured log2 ratios 8.9-9.0 and
   // 7.9-8.0).
-  const State2 x{0.0, 1.0};
-  State2 f;
-  Harmonic()(x, f, 0.0);
   double step_prev = 0.0, dense_prev = 0.0;
   for (double h : {0.8, 0.4, 0.2}) {
-    dop853::Stepper<double, 2> s;
-    State2 x1, f1, mid;
-    s.Step(Harmonic(), x, f, 0.0, h, x1, f1, 2);
-    s.Dense(Harmonic(), 0.0, 0.5, x, x1, f, f1, h, mid, 2);
-    const double step_err = std::hypot(x1[0] - std::sin(h), x1[1] - std::cos(h));
-    const double dense_err = std::hypot(mid[0] - std::sin(0.5 * h), mid[1] - std::cos(0.5 * h));
+    const auto [step_err, dense_err] =
+        SineErrors(h, [](double step, const State2& x, const State2& f, State2& x1, State2& mid) {
+          dop853::Stepper<double, 2> s;
+          State2 f1, start, end;
+          s.Step(Harmonic(), x, f, 0.0, step, x1, f1, 2);
+          s.Dense(Harmonic(), 0.0, 0.5, x, x1, f, f1, step, mid, 2);
+          // The dense output reproduces both ends (to rounding: x + (x1 - x) at theta = 1).
+          s.Dense(Harmonic(), 0.0, 0.0, x, x1, f, f1, step, start, 2);
+          s.Dense(Harmonic(), 0.0, 1.0, x, x1, f, f1, step, end, 2);
+          EXPECT_EQ(start[0], x[0]);
+          EXPECT_NEAR(end[0], x1[0], 1e-16);
+          EXPECT_NEAR(end[1], x1[1], 1e-16);
+        });
     std::printf("[ measured ] h %.2f: step error %.3g, mid-step dense error %.3g\n", h, step_err,
                 dense_err);
     if (step_prev > 0.0) {
@@ -144,13 +157,6 @@ TEST(Dop853, StepIsEighthOrderAndDenseOutputSeventh) {
     }
     step_prev = step_err;
     dense_prev = dense_err;
-    // The dense output reproduces both ends (to rounding: x + (x1 - x) at theta = 1).
-    State2 start, end;
-    s.Dense(Harmonic(), 0.0, 0.0, x, x1, f, f1, h, start, 2);
-    s.Dense(Harmonic(), 0.0, 1.0, x, x1, f, f1, h, end, 2);
-    EXPECT_EQ(start[0], x[0]);
-    EXPECT_NEAR(end[0], x1[0], 1e-16);
-    EXPECT_NEAR(end[1], x1[1], 1e-16);
   }
 }
 

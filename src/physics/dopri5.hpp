@@ -132,17 +132,13 @@ class Stepper {
   }
 
   // The interface the contact integrator uses (shared with dop853::Stepper): the step keeps
-  // its error estimate, ErrorNorm gives its RMS norm with per-component scales sk
-  // (atol + rtol size; <= 1 accepts the step) and SquaredError its square, Dense takes the system
-  // and the step's start (unused here: the extension needs no extra stages).
+  // its error estimate, SquaredError gives the square of its RMS norm with per-component scales
+  // sk (atol + rtol size; <= 1 accepts the step), Dense takes the system and the step's start
+  // (unused here: the extension needs no extra stages).
   template <class Sys>
   void Step(const Sys& sys, const State& x, const State& f, double t, double h, State& x1,
             State& f1, size_t n_active, unsigned /*stage_inputs: all computed*/ = ~0u) {
     Step(sys, x, f, t, h, x1, f1, err_, n_active);
-  }
-  double ErrorNorm(const std::array<double, N>& sk, size_t n) const {
-    const ErrorSquared e = SquaredError(sk, n);
-    return std::sqrt(e.num / e.den);
   }
   ErrorSquared SquaredError(const std::array<double, N>& sk, size_t n) const {
     double sum = 0.0;

@@ -20,6 +20,7 @@
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "huge_pages.hpp"
 
 namespace bouncecal {
 namespace {
@@ -629,11 +630,24 @@ double MaxAbs(const float* x, std::size_t n) {
 }
 
 // Every candidate signal of one block through DetectInSignal (at most at kMaxAnalysisRateHz).
+// `prefault`: map the memory of its arrays first (below).
 BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& choices,
-                        const DetectOptions& options) {
+                        const DetectOptions& options, bool prefault) {
   BlockResult r;
   const int factor = DecimationFactor(rate);
   const double offset_s = static_cast<double>(b.start) / rate;
+  // The arrays of one signal's detection (the signals are detected one after another and share
+  // them): the mix, the decimated signal, the detector's working set; on this thread's heap, in
+  // huge pages mapped at once (huge_pages.hpp).
+  if (prefault) {
+    const std::size_t n = b.channels.front().size();
+    const std::size_t analysed = n / static_cast<std::size_t>(factor) + 1;
+    const bool mixes = std::any_of(choices.begin(), choices.end(), [](int c) { return c < 0; });
+    OnsetOptions oo;
+    oo.hop_s = options.hop_s;
+    PrefaultHeap((mixes ? n * sizeof(float) : 0) + (factor > 1 ? analysed * sizeof(float) : 0) +
+                 OnsetDetector::WorkingBytes(oo, rate / factor, analysed));
+  }
   std::vector<float> mix, xd;
   for (int choice : choices) {
     // A channel is detected on the block's own samples; the mix is made one signal at a time.
@@ -707,7 +721,16 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     in_flight.pop_front();
   };
   reader->Skip(i0);
-  std::vector<std::vector<float>> buf(static_cast<std::size_t>(reader->info().channels));
+  // Where the blocks are detected on this thread (one block, or one thread), the memory for a
+  // block's samples and arrays is mapped at once in huge pages (huge_pages.hpp), once: freed,
+  // it serves the next block. (Done on the threads that detect blocks concurrently too, it
+  // saved no time: 10 minutes on two threads, 0.79 s against 0.81 s, 0.29 s of system time
+  // against 0.15 s.)
+  const std::size_t channels = static_cast<std::size_t>(reader->info().channels);
+  const bool here = i1 - i0 <= cap || threads == 1;
+  if (here)
+    PrefaultHeap(static_cast<std::size_t>(std::min(cap, i1 - i0)) * channels * sizeof(float));
+  std::vector<std::vector<float>> buf(channels);
   std::int64_t buf_start = i0;
   double own_lo_s = -std::numeric_limits<double>::infinity();
   for (bool first = true;; first = false) {
@@ -741,7 +764,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     buf_start = next;
     own_lo_s = b.own_hi_s;
     if (first && b.last) {  // one block: on this thread, with all the threads for its stages
-      MergeBlockResult(DetectBlock(b, rate, choices, options), b.own_lo_s, b.own_hi_s, true,
+      MergeBlockResult(DetectBlock(b, rate, choices, options, true), b.own_lo_s, b.own_hi_s, true,
                        signals);
       break;
     }
@@ -750,11 +773,11 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     if (threads > 1) {
       in_flight.push_back(
           {lo_s, hi_s, last, std::async(std::launch::async, [&, blk = std::move(b)] {
-             return DetectBlock(blk, rate, choices, per_block);
+             return DetectBlock(blk, rate, choices, per_block, false);
            })});
       while (static_cast<int>(in_flight.size()) >= threads) merge_oldest();
     } else {
-      MergeBlockResult(DetectBlock(b, rate, choices, per_block), lo_s, hi_s, last, signals);
+      MergeBlockResult(DetectBlock(b, rate, choices, per_block, here), lo_s, hi_s, last, signals);
     }
     if (last) break;
   }

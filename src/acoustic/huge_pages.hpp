@@ -1,4 +1,5 @@
-// Transparent huge pages for the detection's block-sized buffers (internal to src/acoustic).
+// Transparent huge pages for the detection's block-sized buffers, and memory mapped before it
+// is written (PrefaultHeap) (internal to src/acoustic).
 //
 // A block of a long recording is 2 minutes of audio: each of its per-sample arrays (the samples,
 // the whitened signal, the template correlation and energy) is ~23 MB at 48 kHz, first touched
@@ -12,10 +13,14 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
 
 #if defined(__linux__)
 #include <sys/mman.h>
+#endif
+#if defined(__GLIBC__)
+#include <malloc.h>
 #endif
 
 namespace bouncecal {
@@ -51,6 +56,64 @@ void ReserveHugePages(std::vector<T>* v, std::size_t n) {
   AdviseHugePages(bigger.data(), cap * sizeof(T));
   bigger.insert(bigger.end(), v->begin(), v->end());
   v->swap(bigger);
+}
+
+// Heap memory for the allocations that follow, in huge pages mapped now. On this project's
+// 2-core virtual machine the first write to a 4 KiB page costs 13 us (3.3 ms per MB: the
+// hypervisor maps each page on its own) and to a 2 MiB huge page 1.8 ms per MB, while
+// MADV_POPULATE_WRITE on a MADV_HUGEPAGE range maps it for 0.08 ms per MB, after which
+// writing it is as fast as writing memory written before (measured on 64 MB: first writes in
+// 212 ms with 4 KiB pages, 117 ms with huge pages; 5 ms to populate, then 3 ms to write). The
+// detection of a 1-minute recording (~40 MB of arrays) took 4 700 page faults, a third of its
+// time; with its memory mapped beforehand, 1 900.
+//
+// `bytes` are allocated in pieces, their span marked for huge pages and populated, and freed:
+// malloc then serves the next allocations of this thread from that memory, as long as the
+// program keeps freed heap memory (main.cpp's mallopt; glibc's default returns a large free
+// top of the heap to the system). Pieces malloc maps on their own (above its mmap threshold:
+// with glibc's defaults, any piece) are freed untouched, so in a program with the default
+// settings this does nothing. Populating needs Linux 5.14; elsewhere the advice is ignored and
+// only the allocation remains. Values are unchanged: only how the memory is mapped, and when.
+inline void PrefaultHeap(std::size_t bytes) {
+#if defined(__linux__) && defined(__GLIBC__) && defined(MADV_HUGEPAGE)
+  constexpr std::size_t kPiece = std::size_t{16} << 20;  // below the mmap threshold main.cpp sets
+#if defined(MADV_POPULATE_WRITE)
+  constexpr int kPopulateWrite = MADV_POPULATE_WRITE;
+#else
+  constexpr int kPopulateWrite = 23;  // Linux's value, for headers older than the kernel
+#endif
+  // The list of pieces is allocated first: a small block between two pieces would keep them
+  // from merging again when freed.
+  std::vector<char*> pieces;
+  pieces.reserve(bytes / kPiece + 1);
+  for (std::size_t done = 0; done < bytes; done += kPiece) {
+    const std::size_t mapped_before = mallinfo2().hblkhd;
+    char* p = static_cast<char*>(std::malloc(kPiece));
+    if (p == nullptr) break;
+    if (mallinfo2().hblkhd != mapped_before) {  // mapped on its own: freeing it unmaps it
+      std::free(p);
+      break;
+    }
+    pieces.push_back(p);
+  }
+  // Consecutive pieces (the heap's top, as usual) are one span, so that the huge pages
+  // straddling their boundaries are included.
+  std::sort(pieces.begin(), pieces.end());
+  for (std::size_t i = 0; i < pieces.size();) {
+    std::size_t j = i + 1;
+    while (j < pieces.size() && pieces[j] - (pieces[j - 1] + kPiece) <= 64) ++j;
+    const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(pieces[i]);
+    const std::uintptr_t e = reinterpret_cast<std::uintptr_t>(pieces[j - 1]) + kPiece;
+    const std::uintptr_t lo = (b + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    const std::uintptr_t hi = e & ~(kHugePageBytes - 1);
+    if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE) == 0)
+      madvise(reinterpret_cast<void*>(lo), hi - lo, kPopulateWrite);
+    i = j;
+  }
+  for (auto it = pieces.rbegin(); it != pieces.rend(); ++it) std::free(*it);
+#else
+  (void)bytes;
+#endif
 }
 
 }  // namespace bouncecal

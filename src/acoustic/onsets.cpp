@@ -5,6 +5,7 @@
 #include <fftw3.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <cmath>
 #include <cstring>
@@ -94,10 +95,9 @@ struct FftArrays {
   FftArrays& operator=(const FftArrays&) = delete;
 };
 
-// The novelty's power spectra are computed kSpectraChunk frames at a time, kSpectraPart frames
-// per task on a thread; the reference then slides over the chunk in frame order.
+// The novelty's frames are computed kSpectraChunk at a time (each chunk its own power spectra:
+// memory for one chunk per thread, whatever the length).
 constexpr std::size_t kSpectraChunk = 4096;
-constexpr std::size_t kSpectraPart = 1024;
 // Overlap-save blocks of the template correlation per task.
 constexpr std::size_t kCorrelatePart = 64;
 // Running-energy restarts (samples) of the template energy, and how many per task.
@@ -108,6 +108,16 @@ constexpr std::size_t kThresholdPart = 256;
 
 // Frames averaged into the novelty's reference spectrum (~3 ms at the default hop).
 constexpr std::size_t kRefFrames = 8;
+
+// The template, and its normalised cross-correlation with the whitened signal, computed a chunk
+// at a time: the correlation xc[i] = sum_j h[j] w[i + j] and the energy under the template
+// ww[i] = sum of w^2 over [i, min(n, i + tl)) of every template start i. Both were whole-block
+// float arrays (46 MB for a 2-minute block at 48 kHz, 40 % of the detection's memory, all of it
+// first touched per block); a chunk holds kNccChunk starts, and each value is computed the same
+// way wherever the chunk starts (xc from the overlap-save block of the whole signal that holds
+// it, ww from its kEnergyRestart stretch), so the values are the same to the bit.
+constexpr std::size_t kNccChunk = 32 * kEnergyRestart;
+constexpr std::size_t kNccChunksKept = 4;
 
 int NearestPowerOfTwo(double v) {
   int p = 1;
@@ -542,8 +552,7 @@ OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
   if (!(rate_hz > 0.0) || !std::isfinite(rate_hz))
     throw Error(ErrorCode::kBadParameter,
                 "OnsetDetector: sample rate " + std::to_string(rate_hz) + " Hz must be > 0");
-  const double hop_target = options.hop_s > 0.0 ? options.hop_s * rate_hz : 0.00033 * rate_hz;
-  hop_ = std::max(1, NearestPowerOfTwo(hop_target));
+  hop_ = HopSamples(options, rate_hz);
   window_ = std::max(16, 4 * hop_);
   fft_ = std::make_unique<Fft>(window_);
   template_len_ = std::max(8, static_cast<int>(std::lround(options.template_s * rate_hz)));
@@ -553,6 +562,24 @@ OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
 }
 
 OnsetDetector::~OnsetDetector() = default;
+
+int OnsetDetector::HopSamples(const OnsetOptions& options, double rate_hz) {
+  const double hop_target = options.hop_s > 0.0 ? options.hop_s * rate_hz : 0.00033 * rate_hz;
+  return std::max(1, NearestPowerOfTwo(hop_target));
+}
+
+std::size_t OnsetDetector::WorkingBytes(const OnsetOptions& options, double rate_hz,
+                                        std::size_t samples) {
+  const std::size_t hop = static_cast<std::size_t>(HopSamples(options, rate_hz));
+  const std::size_t frames = samples / hop + 1;
+  const std::size_t bins = std::max<std::size_t>(16, 4 * hop) / 2 + 1;  // the window's
+  // The whitened signal (float); per frame the novelty's num, den and dB values, the novelty
+  // and its threshold (double); this thread's power rows of a novelty chunk; the template
+  // correlation's kept chunks, xc and ww (float).
+  return samples * sizeof(float) + frames * 5 * sizeof(double) +
+         (kSpectraChunk + 4 + kRefFrames) * bins * sizeof(double) +
+         std::min(samples, kNccChunksKept * kNccChunk) * 2 * sizeof(float);
+}
 
 void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz) {
   const double hop = static_cast<double>(std::max(1, hop_samples));
@@ -604,18 +631,38 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
 
 namespace {
 
-// kNoveltyBatch consecutive frames t, t+1, ... of Novelty's reference loop at once, in its
+// The reference of frame t: the kRefFrames frames that end `lag` frames before it,
+// [t - lag - kRefFrames + 1, t - lag], those of them that exist (fewer at the recording's start).
+struct RefSpan {
+  std::size_t first = 0, count = 0;
+};
+RefSpan RefFramesOf(std::size_t t, std::size_t lag) {
+  if (t < lag) return {};
+  const std::size_t last = t - lag;
+  const std::size_t first = last + 1 >= kRefFrames ? last + 1 - kRefFrames : 0;
+  return {first, last + 1 - first};
+}
+
+// ref += row and ref -= row, bin by bin.
+void AddRow(const double* __restrict row, std::size_t bins, double* __restrict ref) {
+  for (std::size_t k = 0; k < bins; ++k) ref[k] += row[k];
+}
+void SubtractRow(const double* __restrict row, std::size_t bins, double* __restrict ref) {
+  for (std::size_t k = 0; k < bins; ++k) ref[k] -= row[k];
+}
+
+// kNoveltyBatch consecutive frames t, t+1, ... of the novelty's reference loop at once, in its
 // steady state (the reference full: every frame's enters and leaves), the same operations as
 // that many passes of the loop: each frame's reference values and its two sums over the bins in
-// bin order, one frame per lane of 4-lane vectors (GCC/Clang vector extension), so that the
-// frames' sums overlap (one frame's sum is a chain of dependent additions). pw: the power rows
-// of the frames; in_rows / out_rows: the rows entering / leaving the reference after frame
-// t + j; ring_rows: where the frames are kept (written last: they replace rows that leave).
+// bin order (the ones NoveltyOne forms), one frame per lane of 4-lane vectors (GCC/Clang vector
+// extension), so that the frames' sums overlap (one frame's sum is a chain of dependent
+// additions). pw[j]: frame t + j's power row; in_rows / out_rows: the rows entering / leaving the
+// reference after frame t + j.
 constexpr std::size_t kNoveltyBatch = 8;
 BOUNCECAL_AVX2_CLONES
-void NoveltyFrames(const double* pw, std::size_t bins, double* ref, double inv_ref,
-                   const double* const* in_rows, const double* const* out_rows,
-                   double* const* ring_rows, double* scratch, double* num, double* den) {
+void NoveltyBatch(const double* const* pw, std::size_t bins, double* ref, double inv_ref,
+                  const double* const* in_rows, const double* const* out_rows, double* scratch,
+                  double* num, double* den) {
   constexpr std::size_t kB = kNoveltyBatch;
   for (std::size_t j = 0; j < kB; ++j) {
     for (std::size_t k = 0; k < bins; ++k) scratch[k * kB + j] = ref[k] * inv_ref;
@@ -625,8 +672,8 @@ void NoveltyFrames(const double* pw, std::size_t bins, double* ref, double inv_r
   const Double4 zero = {0.0, 0.0, 0.0, 0.0};
   Double4 up0 = zero, up1 = zero, total0 = zero, total1 = zero;
   for (std::size_t k = 0; k < bins; ++k) {
-    const Double4 p0 = {pw[k], pw[bins + k], pw[2 * bins + k], pw[3 * bins + k]};
-    const Double4 p1 = {pw[4 * bins + k], pw[5 * bins + k], pw[6 * bins + k], pw[7 * bins + k]};
+    const Double4 p0 = {pw[0][k], pw[1][k], pw[2][k], pw[3][k]};
+    const Double4 p1 = {pw[4][k], pw[5][k], pw[6][k], pw[7][k]};
     Double4 r0, r1;
     std::memcpy(&r0, scratch + k * kB, sizeof r0);
     std::memcpy(&r1, scratch + k * kB + 4, sizeof r1);
@@ -637,10 +684,19 @@ void NoveltyFrames(const double* pw, std::size_t bins, double* ref, double inv_r
     total1 += r1;
   }
   for (std::size_t j = 0; j < kB; ++j) {
-    std::memcpy(ring_rows[j], pw + j * bins, bins * sizeof(double));
     num[j] = j < 4 ? up0[j] : up1[j - 4];
     den[j] = j < 4 ? total0[j] : total1[j - 4];
   }
+}
+void NoveltyOne(const double* pw, std::size_t bins, const double* ref, double* num, double* den) {
+  double up = 0.0, total = 0.0;
+  for (std::size_t k = 0; k < bins; ++k) {
+    const double d = pw[k] - ref[k];
+    up += d < 0.0 ? 0.0 : d;
+    total += ref[k];
+  }
+  *num = up;
+  *den = total;
 }
 
 }  // namespace
@@ -655,77 +711,74 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   // mean power of kRefFrames frames that end where frame t begins (no overlap with it, so a
   // click cannot hide in its own reference):
   //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
+  // The reference is a running sum slid from frame to frame. The frames are cut into chunks of
+  // kSpectraChunk that start their sums anew, each from its first frame's reference frames, so
+  // the chunks are independent: each computes the power rows it needs (its own and the
+  // lag + kRefFrames - 1 before) and its frames' sums, on any thread. The cuts do not depend
+  // on the thread count, nor then do the values.
   const std::size_t lag = (nw + hop - 1) / hop;  // frames overlapping frame t
-  const std::size_t ring = lag + kRefFrames;
-  std::vector<double> spectra(ring * bins, 0.0), ref(bins, 0.0);
+  const std::size_t warm = lag + kRefFrames - 1;
   Buffer<double> num, den;  // every frame's written below
   num.Allocate(frames);
   den.Allocate(frames);
   const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
   const int threads = ResolveThreads(options_.threads);
-  // Power spectra of frames [c0, c0 + kSpectraChunk), parts of them on the threads.
-  std::vector<double> power(std::min(frames, kSpectraChunk) * bins);
-  std::size_t c0 = 0;
-  auto spectra_part = [&](std::size_t part) {
-    FftArrays a(nw);
-    const std::size_t t0 = c0 + part * kSpectraPart;
-    const std::size_t t1 = std::min({frames, c0 + kSpectraChunk, t0 + kSpectraPart});
-    for (std::size_t t = t0; t < t1; ++t) {
-      Windowed(w.data() + t * hop, f.window.data(), nw, a.real);
-      fftw_execute_dft_r2c(f.plan, a.real, a.spec);
-      PowerSpectrum(a.spec, bins, power.data() + (t - c0) * bins);
-    }
-  };
-  std::vector<double> scratch(kNoveltyBatch * bins);
-  for (std::size_t t = 0; t < frames; ++t) {
-    if (t % kSpectraChunk == 0) {
-      c0 = t;
-      const std::size_t in_chunk = std::min(frames - c0, kSpectraChunk);
-      ParallelFor(threads, (in_chunk + kSpectraPart - 1) / kSpectraPart, spectra_part);
-    }
-    const double* pw = power.data() + (t - c0) * bins;
-    // Steady state, a batch of frames inside the chunk: NoveltyFrames (kSpectraChunk is a
-    // multiple of kNoveltyBatch, so a batch starting at a multiple never crosses a chunk).
-    static_assert(kSpectraChunk % kNoveltyBatch == 0);
-    if (t % kNoveltyBatch == 0 && t >= lag + kRefFrames && t + kNoveltyBatch <= frames &&
-        ring >= kNoveltyBatch) {
-      const double* in_rows[kNoveltyBatch];
-      const double* out_rows[kNoveltyBatch];
-      double* ring_rows[kNoveltyBatch];
-      for (std::size_t j = 0; j < kNoveltyBatch; ++j) {
-        const std::size_t f_in = t + j + 1 - lag;  // <= t + j: in this chunk or the ring
-        in_rows[j] =
-            f_in >= t ? power.data() + (f_in - c0) * bins : spectra.data() + (f_in % ring) * bins;
-        out_rows[j] = spectra.data() + ((t + j + 1 - lag - kRefFrames) % ring) * bins;
-        ring_rows[j] = spectra.data() + ((t + j) % ring) * bins;
-      }
-      NoveltyFrames(pw, bins, ref.data(), inv_ref, in_rows, out_rows, ring_rows, scratch.data(),
-                    num.data.get() + t, den.data.get() + t);
-      t += kNoveltyBatch - 1;
-      continue;
-    }
-    double* cur = spectra.data() + (t % ring) * bins;
-    double up = 0.0, ref_total = 0.0;
-    for (std::size_t k = 0; k < bins; ++k) {
-      const double p = pw[k];
-      const double r = ref[k] * inv_ref;
-      up += std::max(p - r, 0.0);  // branch-free half-wave rectification
-      ref_total += r;
-      cur[k] = p;
-    }
-    num[t] = up;
-    den[t] = t >= lag + kRefFrames ? ref_total : -1.0;  // -1: reference not yet full
-    // Slide the reference: frame t + 1 - lag enters, frame t + 1 - lag - kRefFrames leaves.
-    if (t + 1 >= lag) {
-      const double* in_f = spectra.data() + ((t + 1 - lag) % ring) * bins;
-      for (std::size_t k = 0; k < bins; ++k) ref[k] += in_f[k];
-      if (t + 1 >= lag + kRefFrames) {
-        const double* out_f = spectra.data() + ((t + 1 - lag - kRefFrames) % ring) * bins;
-        for (std::size_t k = 0; k < bins; ++k) ref[k] -= out_f[k];
-      }
-    }
-  }
+  const std::size_t chunks = (frames + kSpectraChunk - 1) / kSpectraChunk;
+  // Each thread takes the next chunk until none is left, with its own arrays for them.
+  std::atomic<std::size_t> next_chunk{0};
+  ParallelFor(
+      threads, std::min<std::size_t>(chunks, static_cast<std::size_t>(threads)), [&](std::size_t) {
+        FftArrays a(nw);
+        Buffer<double> power, scratch, ref;  // written before they are read
+        power.Allocate((kSpectraChunk + warm) * bins);
+        scratch.Allocate(kNoveltyBatch * bins);
+        ref.Allocate(bins);
+        for (std::size_t ch = next_chunk++; ch < chunks; ch = next_chunk++) {
+          const std::size_t c0 = ch * kSpectraChunk, c1 = std::min(frames, c0 + kSpectraChunk);
+          const std::size_t p0 = c0 >= warm ? c0 - warm : 0;  // first power row of this chunk
+          for (std::size_t t = p0; t < c1; ++t) {
+            Windowed(w.data() + t * hop, f.window.data(), nw, a.real);
+            fftw_execute_dft_r2c(f.plan, a.real, a.spec);
+            PowerSpectrum(a.spec, bins, power.data.get() + (t - p0) * bins);
+          }
+          auto row = [&](std::size_t frame) { return power.data.get() + (frame - p0) * bins; };
+          // The reference at the chunk's first frame: its frames summed in frame order (as sliding
+          // it from the recording's start would have, in exact arithmetic); then slid frame by
+          // frame.
+          const RefSpan first = RefFramesOf(c0, lag);
+          std::fill(ref.data.get(), ref.data.get() + bins, 0.0);
+          for (std::size_t i = 0; i < first.count; ++i)
+            AddRow(row(first.first + i), bins, ref.data.get());
+          // After frame t, frame t + 1 - lag enters the reference and t + 1 - lag - kRefFrames
+          // leaves.
+          auto slide = [&](std::size_t t) {
+            if (t + 1 < lag) return;
+            AddRow(row(t + 1 - lag), bins, ref.data.get());
+            if (t + 1 >= lag + kRefFrames)
+              SubtractRow(row(t + 1 - lag - kRefFrames), bins, ref.data.get());
+          };
+          for (std::size_t t = c0; t < c1;) {
+            if (t >= lag + kRefFrames && t + kNoveltyBatch <= c1) {  // steady state: a batch
+              const double *pw[kNoveltyBatch], *in_rows[kNoveltyBatch], *out_rows[kNoveltyBatch];
+              for (std::size_t j = 0; j < kNoveltyBatch; ++j) {
+                pw[j] = row(t + j);
+                in_rows[j] = row(t + j + 1 - lag);
+                out_rows[j] = row(t + j + 1 - lag - kRefFrames);
+              }
+              NoveltyBatch(pw, bins, ref.data.get(), inv_ref, in_rows, out_rows, scratch.data.get(),
+                           num.data.get() + t, den.data.get() + t);
+              t += kNoveltyBatch;
+              continue;
+            }
+            for (std::size_t k = 0; k < bins; ++k) scratch[k] = ref[k] * inv_ref;
+            NoveltyOne(row(t), bins, scratch.data.get(), &num[t], &den[t]);
+            if (t < lag + kRefFrames) den[t] = -1.0;  // -1: reference not yet full
+            slide(t);
+            ++t;
+          }
+        }
+      });
   // Floor of the denominator: the median reference power (the background), so silence and
   // digital zeros do not turn tiny increases into large ratios.
   std::vector<double> valid_den;
@@ -739,20 +792,24 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
       if (den[t] >= 0.0) mx = std::max(mx, den[t]);
     floor_power = std::max(mx * 1e-6, 1e-30);
   }
-  for (std::size_t t = 0; t < frames; ++t)
-    if (den[t] < 0.0) den[t] = floor_power;
   // A click stays above its reference for the ~lag frames that contain it, a noise peak for
   // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
   Buffer<double> raw_db;
   raw_db.Allocate(frames);
-  for (std::size_t t = 0; t < frames; ++t)
-    raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (den[t] + floor_power));
   std::vector<double> novelty;
   ReserveHugePages(&novelty, frames);
-  novelty.push_back(0.0);
-  for (std::size_t t = 1; t + 1 < frames; ++t)
-    novelty.push_back((raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0);
-  if (frames > 1) novelty.push_back(0.0);
+  novelty.resize(frames, 0.0);
+  const std::size_t group = std::max<std::size_t>(kSpectraChunk, frames / (4 * threads) + 1);
+  ParallelForGroups(threads, frames, group, [&](std::size_t t0, std::size_t t1) {
+    for (std::size_t t = t0; t < t1; ++t) {
+      const double d = den[t] < 0.0 ? floor_power : den[t];
+      raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (d + floor_power));
+    }
+  });
+  ParallelForGroups(threads, frames, group, [&](std::size_t t0, std::size_t t1) {
+    for (std::size_t t = std::max<std::size_t>(t0, 1); t < std::min(t1, frames - 1); ++t)
+      novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+  });
   return novelty;
 }
 
@@ -955,16 +1012,6 @@ Impact OnsetDetector::Refine(const std::vector<float>& x, const OnsetResult& res
   imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * noise_var) + 1e-30));
   return imp;
 }
-
-// The template, and its normalised cross-correlation with the whitened signal, computed a chunk
-// at a time: the correlation xc[i] = sum_j h[j] w[i + j] and the energy under the template
-// ww[i] = sum of w^2 over [i, min(n, i + tl)) of every template start i. Both were whole-block
-// float arrays (46 MB for a 2-minute block at 48 kHz, 40 % of the detection's memory, all of it
-// first touched per block); a chunk holds kNccChunk starts, and each value is computed the same
-// way wherever the chunk starts (xc from the overlap-save block of the whole signal that holds
-// it, ww from its kEnergyRestart stretch), so the values are the same to the bit.
-constexpr std::size_t kNccChunk = 32 * kEnergyRestart;
-constexpr std::size_t kNccChunksKept = 4;
 
 struct OnsetDetector::TemplateMatch {
   double hh = 0.0;

@@ -13,7 +13,7 @@
 #include <random>
 #include <string>
 
-#include "acoustic/huge_pages.hpp"
+#include "core/huge_pages.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
 

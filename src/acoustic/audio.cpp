@@ -18,7 +18,7 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
-#include "huge_pages.hpp"
+#include "../core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace fs = std::filesystem;

@@ -20,7 +20,7 @@
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
-#include "huge_pages.hpp"
+#include "../core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace {
@@ -638,7 +638,7 @@ BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& cho
   const double offset_s = static_cast<double>(b.start) / rate;
   // The arrays of one signal's detection (the signals are detected one after another and share
   // them): the mix, the decimated signal, the detector's working set; on this thread's heap, in
-  // huge pages mapped at once (huge_pages.hpp).
+  // huge pages mapped at once (core/huge_pages.hpp).
   if (prefault) {
     const std::size_t n = b.channels.front().size();
     const std::size_t analysed = n / static_cast<std::size_t>(factor) + 1;
@@ -722,7 +722,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   };
   reader->Skip(i0);
   // Where the blocks are detected on this thread (one block, or one thread), the memory for a
-  // block's samples and arrays is mapped at once in huge pages (huge_pages.hpp), once: freed,
+  // block's samples and arrays is mapped at once in huge pages (core/huge_pages.hpp), once: freed,
   // it serves the next block. (Done on the threads that detect blocks concurrently too, it
   // saved no time: 10 minutes on two threads, 0.79 s against 0.81 s, 0.29 s of system time
   // against 0.15 s.)

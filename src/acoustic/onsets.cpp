@@ -19,7 +19,7 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
-#include "huge_pages.hpp"
+#include "../core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace {

@@ -155,7 +155,7 @@ class OnsetDetector {
   static int HopSamples(const OnsetOptions& options, double rate_hz);
   // Heap bytes Detect allocates at most at once for a signal of `samples` (its whitened copy,
   // per-frame arrays, the template correlation's chunks; not the samples themselves): what a
-  // caller may have PrefaultHeap (src/acoustic/huge_pages.hpp) map beforehand.
+  // caller may have PrefaultHeap (src/core/huge_pages.hpp) map beforehand.
   static std::size_t WorkingBytes(const OnsetOptions& options, double rate_hz, std::size_t samples);
 
  private:

@@ -1,5 +1,5 @@
 // Transparent huge pages for the detection's block-sized buffers, and memory mapped before it
-// is written (PrefaultHeap) (internal to src/acoustic).
+// is written (PrefaultHeap) (internal to the library and the program, src/).
 //
 // A block of a long recording is 2 minutes of audio: each of its per-sample arrays (the samples,
 // the whitened signal, the template correlation and energy) is ~23 MB at 48 kHz, first touched
@@ -76,41 +76,48 @@ void ReserveHugePages(std::vector<T>* v, std::size_t n) {
 // only the allocation remains. Values are unchanged: only how the memory is mapped, and when.
 inline void PrefaultHeap(std::size_t bytes) {
 #if defined(__linux__) && defined(__GLIBC__) && defined(MADV_HUGEPAGE)
+  if (bytes < 2 * kHugePageBytes) return;                // holds no whole huge page for sure
   constexpr std::size_t kPiece = std::size_t{16} << 20;  // below the mmap threshold main.cpp sets
 #if defined(MADV_POPULATE_WRITE)
   constexpr int kPopulateWrite = MADV_POPULATE_WRITE;
 #else
   constexpr int kPopulateWrite = 23;  // Linux's value, for headers older than the kernel
 #endif
+  struct Piece {
+    char* p;
+    std::size_t n;
+  };
   // The list of pieces is allocated first: a small block between two pieces would keep them
   // from merging again when freed.
-  std::vector<char*> pieces;
+  std::vector<Piece> pieces;
   pieces.reserve(bytes / kPiece + 1);
-  for (std::size_t done = 0; done < bytes; done += kPiece) {
+  for (std::size_t done = 0; done < bytes;) {
+    const std::size_t n = std::min(kPiece, bytes - done);
     const std::size_t mapped_before = mallinfo2().hblkhd;
-    char* p = static_cast<char*>(std::malloc(kPiece));
+    char* p = static_cast<char*>(std::malloc(n));
     if (p == nullptr) break;
     if (mallinfo2().hblkhd != mapped_before) {  // mapped on its own: freeing it unmaps it
       std::free(p);
       break;
     }
-    pieces.push_back(p);
+    pieces.push_back({p, n});
+    done += n;
   }
   // Consecutive pieces (the heap's top, as usual) are one span, so that the huge pages
   // straddling their boundaries are included.
-  std::sort(pieces.begin(), pieces.end());
+  std::sort(pieces.begin(), pieces.end(), [](const Piece& x, const Piece& y) { return x.p < y.p; });
   for (std::size_t i = 0; i < pieces.size();) {
     std::size_t j = i + 1;
-    while (j < pieces.size() && pieces[j] - (pieces[j - 1] + kPiece) <= 64) ++j;
-    const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(pieces[i]);
-    const std::uintptr_t e = reinterpret_cast<std::uintptr_t>(pieces[j - 1]) + kPiece;
+    while (j < pieces.size() && pieces[j].p - (pieces[j - 1].p + pieces[j - 1].n) <= 64) ++j;
+    const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(pieces[i].p);
+    const std::uintptr_t e = reinterpret_cast<std::uintptr_t>(pieces[j - 1].p) + pieces[j - 1].n;
     const std::uintptr_t lo = (b + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
     const std::uintptr_t hi = e & ~(kHugePageBytes - 1);
     if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE) == 0)
       madvise(reinterpret_cast<void*>(lo), hi - lo, kPopulateWrite);
     i = j;
   }
-  for (auto it = pieces.rbegin(); it != pieces.rend(); ++it) std::free(*it);
+  for (auto it = pieces.rbegin(); it != pieces.rend(); ++it) std::free(it->p);
 #else
   (void)bytes;
 #endif

@@ -13,9 +13,9 @@
 #include <random>
 #include <string>
 
-#include "core/huge_pages.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
+#include "core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace {

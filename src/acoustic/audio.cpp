@@ -15,10 +15,10 @@
 #include <regex>
 #include <sstream>
 
+#include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
-#include "../core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace fs = std::filesystem;

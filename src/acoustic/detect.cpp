@@ -13,6 +13,7 @@
 #include <map>
 #include <optional>
 
+#include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/acoustic/plausibility.hpp"
@@ -20,7 +21,6 @@
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
-#include "../core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace {
@@ -723,9 +723,9 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   reader->Skip(i0);
   // Where the blocks are detected on this thread (one block, or one thread), the memory for a
   // block's samples and arrays is mapped at once in huge pages (core/huge_pages.hpp), once: freed,
-  // it serves the next block. (Done on the threads that detect blocks concurrently too, it
-  // saved no time: 10 minutes on two threads, 0.79 s against 0.81 s, 0.29 s of system time
-  // against 0.15 s.)
+  // it serves the next block. Not where blocks are detected concurrently: each thread std::async
+  // starts takes an allocator arena of its own, and mapping ahead there (or in one arena for all,
+  // M_ARENA_MAX 1) changed 10 minutes on two threads by no more than the machine's noise (+-5 %).
   const std::size_t channels = static_cast<std::size_t>(reader->info().channels);
   const bool here = i1 - i0 <= cap || threads == 1;
   if (here)

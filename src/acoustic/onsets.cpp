@@ -16,10 +16,10 @@
 #include <numbers>
 #include <sstream>
 
+#include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
-#include "../core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace {

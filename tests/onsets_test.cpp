@@ -295,16 +295,23 @@ std::vector<double> ReferenceNovelty(const std::vector<float>& w, std::size_t ho
   const std::size_t frames = (w.size() - nw) / hop + 1, bins = nw / 2 + 1;
   const std::size_t lag = (nw + hop - 1) / hop, kRef = 8;
   std::vector<std::vector<double>> p(frames, std::vector<double>(bins));
+  const double n = static_cast<double>(nw);
+  std::vector<double> hann(nw), c(bins * nw), sn(bins * nw);
+  for (std::size_t i = 0; i < nw; ++i) {
+    hann[i] = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / n);
+    for (std::size_t k = 0; k < bins; ++k) {
+      const double phase = 2.0 * M_PI * static_cast<double>(k * i % nw) / n;
+      c[k * nw + i] = std::cos(phase);
+      sn[k * nw + i] = std::sin(phase);
+    }
+  }
   for (std::size_t t = 0; t < frames; ++t)
     for (std::size_t k = 0; k < bins; ++k) {
       double re = 0.0, im = 0.0;
-      const double n = static_cast<double>(nw);
       for (std::size_t i = 0; i < nw; ++i) {
-        const double di = static_cast<double>(i),
-                     phase = 2.0 * M_PI * static_cast<double>(k) * di / n;
-        const double x = w[t * hop + i] * (0.5 - 0.5 * std::cos(2.0 * M_PI * di / n));
-        re += x * std::cos(phase);
-        im -= x * std::sin(phase);
+        const double x = w[t * hop + i] * hann[i];
+        re += x * c[k * nw + i];
+        im -= x * sn[k * nw + i];
       }
       p[t][k] = re * re + im * im;
     }
@@ -357,6 +364,20 @@ TEST(Onsets, NoveltyIsTheRelativeSpectralFluxAtEveryFrameForAnyThreadCount) {
     o.threads = threads;
     EXPECT_EQ(OnsetDetector(o, r.rate_hz).Detect(r.x).novelty_db, res.novelty_db) << threads;
   }
+  // A longer hop (64 samples, 129 bins): chunks of 2032 frames (their power rows held to 2 MB),
+  // three of them here.
+  OnsetOptions longer;
+  longer.hop_s = 64.0 / r.rate_hz;
+  const OnsetDetector coarse(longer, r.rate_hz);
+  ASSERT_EQ(coarse.hop_samples(), 64);
+  const OnsetResult cr = coarse.Detect(r.x);
+  const std::vector<double> cref = ReferenceNovelty(cr.whitened, 64, 256);
+  ASSERT_EQ(cr.novelty_db.size(), cref.size());
+  ASSERT_GT(cref.size(), 2u * 2032u);
+  for (std::size_t t = 0; t < cref.size(); ++t)
+    ASSERT_NEAR(cr.novelty_db[t], cref[t], 1e-9) << "frame " << t << " at the 64-sample hop";
+  longer.threads = 3;
+  EXPECT_EQ(OnsetDetector(longer, r.rate_hz).Detect(r.x).novelty_db, cr.novelty_db);
 }
 
 TEST(Onsets, ReserveHugePagesKeepsTheValuesAndGrowsGeometrically) {

@@ -95,9 +95,13 @@ struct FftArrays {
   FftArrays& operator=(const FftArrays&) = delete;
 };
 
-// The novelty's frames are computed kSpectraChunk at a time (each chunk its own power spectra:
-// memory for one chunk per thread, whatever the length).
+// The novelty's frames are computed a chunk at a time (each chunk its own power spectra: memory
+// for one chunk per thread, whatever the length): kSpectraChunk frames, fewer where the power
+// rows of that many would pass kSpectraChunkBytes (long hops, --hop-ms: 16 MB per thread at
+// 5 ms), at least kMinSpectraChunk.
 constexpr std::size_t kSpectraChunk = 4096;
+constexpr std::size_t kSpectraChunkBytes = std::size_t{2} << 20;
+constexpr std::size_t kMinSpectraChunk = 256;
 // Overlap-save blocks of the template correlation per task.
 constexpr std::size_t kCorrelatePart = 64;
 // Running-energy restarts (samples) of the template energy, and how many per task.
@@ -118,6 +122,12 @@ constexpr std::size_t kRefFrames = 8;
 // it, ww from its kEnergyRestart stretch), so the values are the same to the bit.
 constexpr std::size_t kNccChunk = 32 * kEnergyRestart;
 constexpr std::size_t kNccChunksKept = 4;
+
+// Frames per novelty chunk for power rows of `bins` values (a multiple of the frame batch).
+std::size_t SpectraChunkFrames(std::size_t bins) {
+  const std::size_t fit = kSpectraChunkBytes / (bins * sizeof(double)) / 8 * 8;
+  return std::clamp(fit, kMinSpectraChunk, kSpectraChunk);
+}
 
 int NearestPowerOfTwo(double v) {
   int p = 1;
@@ -577,7 +587,7 @@ std::size_t OnsetDetector::WorkingBytes(const OnsetOptions& options, double rate
   // and its threshold (double); this thread's power rows of a novelty chunk; the template
   // correlation's kept chunks, xc and ww (float).
   return samples * sizeof(float) + frames * 5 * sizeof(double) +
-         (kSpectraChunk + 4 + kRefFrames) * bins * sizeof(double) +
+         (std::min(frames, SpectraChunkFrames(bins)) + 4 + kRefFrames) * bins * sizeof(double) +
          std::min(samples, kNccChunksKept * kNccChunk) * 2 * sizeof(float);
 }
 
@@ -712,7 +722,7 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   // click cannot hide in its own reference):
   //   num_t = sum_k max(0, P_t(k) - R_t(k)),  den_t = sum_k R_t(k).
   // The reference is a running sum slid from frame to frame. The frames are cut into chunks of
-  // kSpectraChunk that start their sums anew, each from its first frame's reference frames, so
+  // SpectraChunkFrames that start their sums anew, each from its first frame's reference frames, so
   // the chunks are independent: each computes the power rows it needs (its own and the
   // lag + kRefFrames - 1 before) and its frames' sums, on any thread. The cuts do not depend
   // on the thread count, nor then do the values.
@@ -724,18 +734,19 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
   const int threads = ResolveThreads(options_.threads);
-  const std::size_t chunks = (frames + kSpectraChunk - 1) / kSpectraChunk;
+  const std::size_t chunk = SpectraChunkFrames(bins);
+  const std::size_t chunks = (frames + chunk - 1) / chunk;
   // Each thread takes the next chunk until none is left, with its own arrays for them.
   std::atomic<std::size_t> next_chunk{0};
   ParallelFor(
       threads, std::min<std::size_t>(chunks, static_cast<std::size_t>(threads)), [&](std::size_t) {
         FftArrays a(nw);
         Buffer<double> power, scratch, ref;  // written before they are read
-        power.Allocate((kSpectraChunk + warm) * bins);
+        power.Allocate((std::min(frames, chunk) + warm) * bins);
         scratch.Allocate(kNoveltyBatch * bins);
         ref.Allocate(bins);
         for (std::size_t ch = next_chunk++; ch < chunks; ch = next_chunk++) {
-          const std::size_t c0 = ch * kSpectraChunk, c1 = std::min(frames, c0 + kSpectraChunk);
+          const std::size_t c0 = ch * chunk, c1 = std::min(frames, c0 + chunk);
           const std::size_t p0 = c0 >= warm ? c0 - warm : 0;  // first power row of this chunk
           for (std::size_t t = p0; t < c1; ++t) {
             Windowed(w.data() + t * hop, f.window.data(), nw, a.real);

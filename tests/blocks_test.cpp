@@ -10,13 +10,17 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
+#include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "test_util.hpp"
 
@@ -293,6 +297,45 @@ TEST(DetectBlocks, ResultIsTheSameForAnyThreadCount) {
   o.threads = -1;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("DetectOptions::threads"), std::string::npos) << why;
+}
+
+// A bad sample the reader meets while earlier blocks are being detected (on the BlockWorkers
+// threads) ends the detection with the reader's error, on every thread count, without waiting
+// for the blocks not yet started or hanging: a NaN 40 s into 46 s of drops, in blocks of at
+// most 12 s (the fourth block). The same file without the NaN is detected.
+TEST(DetectBlocks, ABadSampleReadWhileBlocksAreDetectedEndsTheDetection) {
+  ScratchDir dir("bc_blocks");
+  SynthSpec spec = SynthPreset("steel-copper");
+  spec.render.seed = 23;
+  spec.drops.clear();
+  for (int k = 0; k < 5; ++k) spec.drops.push_back(SynthDrop{1.0 + 9.0 * k, {}});
+  const SynthResult s = Synthesize(spec);
+  const std::vector<std::vector<float>>& x = s.recording.channels;
+  const std::size_t at = static_cast<std::size_t>(40.0 * s.recording.sample_rate_hz);
+  ASSERT_LT(at, x.front().size());
+  const std::string good = dir / "good.wav", bad = dir / "nan.wav";
+  WriteAudio(good, x, s.recording.sample_rate_hz, AudioWriteOptions{.subtype = "FLOAT"});
+  // WriteAudio refuses a NaN: the copy gets it in place of its sample (mono 32-bit float WAV:
+  // four bytes per frame after the data chunk's 8-byte header).
+  std::string bytes = testing_util::Slurp(good);
+  const std::size_t data = bytes.find("data");
+  ASSERT_NE(data, std::string::npos);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&bytes[data + 8 + 4 * at], &nan, sizeof nan);
+  std::ofstream(bad, std::ios::binary) << bytes;
+  DetectOptions o;
+  o.max_block_s = 12.0;
+  for (const int threads : {1, 2, 3}) {
+    o.threads = threads;
+    EXPECT_GE(DetectImpactsInFile(good, o).sequences.size(), 5u) << threads;
+    try {
+      DetectImpactsInFile(bad, o);
+      ADD_FAILURE() << threads << " threads: no error";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kBadSamples) << threads << " threads: " << e.what();
+      EXPECT_NE(std::string(e.what()).find("nan.wav"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // A sequence that runs across a block's cut is reported (block_split), not silently split: a

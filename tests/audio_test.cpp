@@ -331,32 +331,9 @@ TEST_F(AudioTest, TruncatedFiles) {
   }
 }
 
-// A 32-bit float WAV written byte by byte (WAVE_FORMAT_IEEE_FLOAT), so that samples the writer
-// refuses (NaN, Inf) can be put into a file.
-void WriteFloatWav(const std::string& path, const std::vector<float>& interleaved, int channels,
-                   int rate) {
-  auto u32 = [](std::ofstream& o, std::uint32_t v) { o.write(reinterpret_cast<char*>(&v), 4); };
-  auto u16 = [](std::ofstream& o, std::uint16_t v) { o.write(reinterpret_cast<char*>(&v), 2); };
-  const auto data_bytes = static_cast<std::uint32_t>(interleaved.size() * 4);
-  std::ofstream o(path, std::ios::binary);
-  o.write("RIFF", 4);
-  u32(o, 36 + data_bytes);
-  o.write("WAVEfmt ", 8);
-  u32(o, 16);
-  u16(o, 3);  // IEEE float
-  u16(o, static_cast<std::uint16_t>(channels));
-  u32(o, static_cast<std::uint32_t>(rate));
-  u32(o, static_cast<std::uint32_t>(rate * channels * 4));
-  u16(o, static_cast<std::uint16_t>(channels * 4));
-  u16(o, 32);
-  o.write("data", 4);
-  u32(o, data_bytes);
-  o.write(reinterpret_cast<const char*>(interleaved.data()), data_bytes);
-}
-
 TEST_F(AudioTest, HandMadeFloatWavReads) {
   std::vector<float> x{0.25f, -0.5f, 0.125f, 1.5f, -0.75f, 0.0f};
-  WriteFloatWav(Path("hand.wav"), x, 2, 22050);
+  testing_util::WriteFloatWav(Path("hand.wav"), x, 2, 22050);
   const Audio a = ReadAudio(Path("hand.wav"));
   EXPECT_EQ(a.info.subtype, "FLOAT");
   ASSERT_EQ(a.info.channels, 2);
@@ -369,7 +346,7 @@ TEST_F(AudioTest, NanAndInfSamples) {
                     -std::numeric_limits<float>::infinity()}) {
     std::vector<float> x(2000, 0.1f);
     x[2 * 777 + 1] = bad;  // channel 1, frame 777
-    WriteFloatWav(Path("bad.wav"), x, 2, 48000);
+    testing_util::WriteFloatWav(Path("bad.wav"), x, 2, 48000);
     std::string msg;
     EXPECT_EQ(CodeOf(Path("bad.wav"), &msg), ErrorCode::kBadSamples) << bad;
     EXPECT_NE(msg.find("channel 1 at frame 777"), std::string::npos) << msg;

@@ -10,9 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <random>
 #include <string>
@@ -315,14 +313,10 @@ TEST(DetectBlocks, ABadSampleReadWhileBlocksAreDetectedEndsTheDetection) {
   ASSERT_LT(at, x.front().size());
   const std::string good = dir / "good.wav", bad = dir / "nan.wav";
   WriteAudio(good, x, s.recording.sample_rate_hz, AudioWriteOptions{.subtype = "FLOAT"});
-  // WriteAudio refuses a NaN: the copy gets it in place of its sample (mono 32-bit float WAV:
-  // four bytes per frame after the data chunk's 8-byte header).
-  std::string bytes = testing_util::Slurp(good);
-  const std::size_t data = bytes.find("data");
-  ASSERT_NE(data, std::string::npos);
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  std::memcpy(&bytes[data + 8 + 4 * at], &nan, sizeof nan);
-  std::ofstream(bad, std::ios::binary) << bytes;
+  ASSERT_EQ(x.size(), 1u);
+  std::vector<float> with_nan = x.front();  // mono: interleaved is the channel
+  with_nan[at] = std::numeric_limits<float>::quiet_NaN();
+  testing_util::WriteFloatWav(bad, with_nan, 1, static_cast<int>(s.recording.sample_rate_hz));
   DetectOptions o;
   o.max_block_s = 12.0;
   for (const int threads : {1, 2, 3}) {

@@ -16,11 +16,11 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <sndfile.h>
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/synth/synth.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
@@ -75,18 +75,6 @@ class CliTest : public ::testing::Test {
     return r;
   }
 
-  static void WriteFloatWav(const std::string& path, const std::vector<float>& x, int rate) {
-    SF_INFO info{};
-    info.samplerate = rate;
-    info.channels = 1;
-    info.format = SF_FORMAT_WAV | SF_FORMAT_FLOAT;
-    SNDFILE* f = sf_open(path.c_str(), SFM_WRITE, &info);
-    ASSERT_NE(f, nullptr) << sf_strerror(nullptr);
-    sf_command(f, SFC_SET_NORM_FLOAT, nullptr, SF_FALSE);
-    sf_write_float(f, x.data(), static_cast<sf_count_t>(x.size()));
-    sf_close(f);
-  }
-
   static void MakeInputs() {
     fs::create_directories(dir_ / "a_directory");
     std::ofstream(P("text.wav")) << "this is not audio, just a text file\nwith two lines\n";
@@ -100,10 +88,10 @@ class CliTest : public ::testing::Test {
     std::vector<float> noise(3 * rate);
     for (float& v : noise) v = normal(rng);
     WriteAudio(P("noise.wav"), {noise}, rate);
-    // NaN samples in a float WAV (written with libsndfile directly: WriteAudio may refuse NaN).
+    // NaN samples in a float WAV (written byte by byte: WriteAudio refuses NaN).
     std::vector<float> nan_samples = noise;
     nan_samples[rate] = std::nanf("");
-    WriteFloatWav(P("nan.wav"), nan_samples, rate);
+    testing_util::WriteFloatWav(P("nan.wav"), nan_samples, 1, rate);
     // A truncated WAV: a valid file cut in the middle of its data chunk.
     WriteAudio(P("full.wav"), {noise}, rate);
     {

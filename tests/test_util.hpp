@@ -7,13 +7,38 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace bouncecal::testing_util {
+
+// A 32-bit float WAV written byte by byte (WAVE_FORMAT_IEEE_FLOAT), so that samples the writer
+// refuses (NaN, Inf) can be put into a file. `interleaved`: frame after frame, every channel.
+inline void WriteFloatWav(const std::string& path, const std::vector<float>& interleaved,
+                          int channels, int rate) {
+  auto u32 = [](std::ofstream& o, std::uint32_t v) { o.write(reinterpret_cast<char*>(&v), 4); };
+  auto u16 = [](std::ofstream& o, std::uint16_t v) { o.write(reinterpret_cast<char*>(&v), 2); };
+  const auto data_bytes = static_cast<std::uint32_t>(interleaved.size() * 4);
+  std::ofstream o(path, std::ios::binary);
+  o.write("RIFF", 4);
+  u32(o, 36 + data_bytes);
+  o.write("WAVEfmt ", 8);
+  u32(o, 16);
+  u16(o, 3);  // IEEE float
+  u16(o, static_cast<std::uint16_t>(channels));
+  u32(o, static_cast<std::uint32_t>(rate));
+  u32(o, static_cast<std::uint32_t>(rate * channels * 4));
+  u16(o, static_cast<std::uint16_t>(channels * 4));
+  u16(o, 32);
+  o.write("data", 4);
+  u32(o, data_bytes);
+  o.write(reinterpret_cast<const char*>(interleaved.data()), data_bytes);
+}
 
 // A directory that exists for the lifetime of the object and is removed with it; unique per
 // process and per object.

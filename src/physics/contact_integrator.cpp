@@ -54,11 +54,19 @@ constexpr double kHighOrderTolerance = 1e-7;
 //   first_step: the first step, as a fraction of the contact (or of the approach phase's range
 //     of u) at rel_tolerance 1: first_step (tolerance_scale rtol)^(1/order). DOP853's first
 //     step at 0.5 had errors ~1e-6 of the tolerance.
-//   approach_end_speed, approach_end_overlap: the approach phase (u) ends once delta' < this
+//   approach_end_speed, approach_end_overlap(_q6): the approach phase (u) ends once delta' < this
 //     fraction of v_in, or delta beyond this fraction of the estimated peak overlap (a ball that
 //     gravity keeps accelerating). 0.5..0.8 gave dopri5 the same step counts within 5 %;
 //     DOP853's longer steps find the u phase's singular end (delta' -> 0) harder: 0.95 and 0.25
-//     saved a fifth of its steps and half its rejected ones.
+//     saved a fifth of its steps and half its rejected ones. With DOP853 the overlap bound is
+//     the one that ends the approach (delta' = 0.95 v_in only at ~0.4 of the peak overlap), and
+//     its last u step was rejected in every Hunt-Crossley contact above ~1 mm/s. At 0.15
+//     (approach_end_overlap, roots q = 2 and 4), bench_simulate --law at rtol 1e-9 (30
+//     contacts; steps per contact, rejected share and errors against 0.25): hunt-crossley (-hc,
+//     -ln, -flores) 25.0 -> 24.0 (24.1), 5 -> 1 % rejected, errors in e x0.93-0.95;
+//     hertz-viscoelastic 26 -> 25, 8 -> 4 %, x0.83; hertz-tsuji 38.5 -> 36.4, 7 -> 3 %, x0.16;
+//     from rtol 1e-7 to 1e-11 no error above 1.3x its value at 0.25. simulate --law hunt-crossley-ln: 283 272 -> 278 077 steps. Jiang-liu (q = 6) gained
+//     nothing (57.7 -> 58.0 steps, impact-time error x3 at 1e-9): approach_end_overlap_q6 = 0.25.
 //   exit_first_step: the exit phase's first step against the last time step mapped to u
 //     (DOP853's was rejected at full length for the Hertz laws).
 //   exit_overlap_q2: for laws smooth in delta^(1/2) (OverlapRoot q = 2), the exit phase (u)
@@ -71,13 +79,19 @@ constexpr double kHighOrderTolerance = 1e-7;
 //     impact-time error then rose from rtol 1e-8 to 1e-9 (bench_simulate: 5.1e-10 -> 6.4e-10 s
 //     at 0.3, 0.4 and 0.5), jiang-liu gained 3 %.
 struct Tuning {
-  double tolerance_scale, first_step, approach_end_speed, approach_end_overlap, exit_first_step,
-      exit_overlap_q2;
+  double tolerance_scale, first_step, approach_end_speed, approach_end_overlap,
+      approach_end_overlap_q6, exit_first_step, exit_overlap_q2;
 };
 template <class M>
-inline constexpr Tuning kTuning{0.25, 0.5, 0.7, std::numeric_limits<double>::infinity(), 1.0, 0.7};
+inline constexpr Tuning kTuning{0.25,
+                                0.5,
+                                0.7,
+                                std::numeric_limits<double>::infinity(),
+                                std::numeric_limits<double>::infinity(),
+                                1.0,
+                                0.7};
 template <>
-inline constexpr Tuning kTuning<dop853::Method>{0.15, 2.0, 0.95, 0.25, 0.7, 0.5};
+inline constexpr Tuning kTuning<dop853::Method>{0.15, 2.0, 0.95, 0.15, 0.25, 0.7, 0.5};
 
 enum class Phase { kApproach, kMiddle, kExit };
 
@@ -637,7 +651,8 @@ class ContactIntegration {
     CheckStuck();
     if (done_) return;
     const double end_overlap_m =
-        kTuning<M>.approach_end_overlap * kPeakOverlapEstimate * Scale().length_m;
+        (sys_.root() > 4 ? kTuning<M>.approach_end_overlap_q6 : kTuning<M>.approach_end_overlap) *
+        kPeakOverlapEstimate * Scale().length_m;
     if (here_.delta_dot < kTuning<M>.approach_end_speed * Scale().speed_m_s ||
         here_.delta > end_overlap_m) {
       ToTime();

@@ -65,8 +65,9 @@ constexpr double kHighOrderTolerance = 1e-7;
 //     contacts; steps per contact, rejected share and errors against 0.25): hunt-crossley (-hc,
 //     -ln, -flores) 25.0 -> 24.0 (24.1), 5 -> 1 % rejected, errors in e x0.93-0.95;
 //     hertz-viscoelastic 26 -> 25, 8 -> 4 %, x0.83; hertz-tsuji 38.5 -> 36.4, 7 -> 3 %, x0.16;
-//     from rtol 1e-7 to 1e-11 no error above 1.3x its value at 0.25. simulate --law hunt-crossley-ln: 283 272 -> 278 077 steps. Jiang-liu (q = 6) gained
-//     nothing (57.7 -> 58.0 steps, impact-time error x3 at 1e-9): approach_end_overlap_q6 = 0.25.
+//     from rtol 1e-7 to 1e-11 no error above 1.3x its value at 0.25. simulate --law
+//     hunt-crossley-ln: 283 272 -> 278 077 steps. Jiang-liu (q = 6) gained nothing (57.7 -> 58.0
+//     steps, impact-time error x3 at 1e-9): approach_end_overlap_q6 = 0.25.
 //   exit_first_step: the exit phase's first step against the last time step mapped to u
 //     (DOP853's was rejected at full length for the Hertz laws).
 //   exit_overlap_q2: for laws smooth in delta^(1/2) (OverlapRoot q = 2), the exit phase (u)

@@ -9,7 +9,13 @@ Each file is one synthesized minute of steel-on-copper drops (`bouncecal synth -
 --duration 60`, 16-bit WAV) repeated end to end, so an N-minute file holds 6 N drops. Every
 figure is a whole process as a user waits for it (`/usr/bin/time`: wall, user and system CPU,
 maximum resident set size), the run with the least CPU time (user + system) of --repeat; `bouncecal detect --json` is checked to
-find every drop (one sequence per drop). aubioonset runs with `-H 256` (its hop of 5.3 ms at
+find every drop (one sequence per drop), and compared with the detection of the synthesized
+minute alone (one block, whole): every minute of the long file holds the same samples, so a
+long file detected in blocks should find, minute by minute, the same impacts at the same times.
+Two columns say how far it does: the impacts found against N times the minute's (and the sum
+over sequences of the difference in their member counts: the quiet last impacts of a sequence
+are decided by its block's own statistics), and the largest time difference of an impact found
+in both, over its sigma, among impacts at least 3 dB above the noise. aubioonset runs with `-H 256` (its hop of 5.3 ms at
 48 kHz; bouncecal's onsets are ~0.33 ms) on the same file in the same loop (the tools take turns
 each repeat; --compare adds another bouncecal build, e.g. main's, checked to print the same JSON), so the ratio column
 compares two measurements taken side by side: CPU time (user + system), which a shared machine's
@@ -59,6 +65,41 @@ def make_file(bouncecal, work, rate, minutes, cache):
     return path
 
 
+def sequences_of(path):
+    """The sequences of a detect --json output: lists of (time_s, sigma_s, snr_db)."""
+    with open(path) as f:
+        doc = json.load(f)
+    return [[(i["time_s"], i["time_sigma_s"], i["snr_db"]) for i in q["impacts"]]
+            for q in doc["sequences"]]
+
+
+def against_minute(long_seqs, minute_seqs):
+    """Compares a long file's sequences with the minute's, minute by minute: returns (impacts
+    found, sum of |member count difference| over the sequences, largest |dt| / sigma among the
+    impacts found in both with SNR >= 3 dB, sequences without a counterpart)."""
+    by_start = {}
+    for q in minute_seqs:
+        by_start[round(q[0][0], 2)] = q
+    found = sum(len(q) for q in long_seqs)
+    diff = unmatched = 0
+    worst = 0.0
+    for q in long_seqs:
+        shift = 60.0 * int(q[0][0] // 60.0)
+        ref = by_start.get(round(q[0][0] - shift, 2))
+        if ref is None:
+            unmatched += 1
+            continue
+        diff += abs(len(q) - len(ref))
+        ref_times = [r[0] + shift for r in ref]
+        for t, sigma, snr in q:
+            if snr < 3.0:
+                continue
+            k = min(range(len(ref_times)), key=lambda j: abs(ref_times[j] - t))
+            if abs(ref_times[k] - t) < 0.002 and ref[k][2] >= 3.0:
+                worst = max(worst, abs(ref_times[k] - t) / max(sigma, 1e-12))
+    return found, diff, worst, unmatched
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--bouncecal", default="build/bouncecal")
@@ -80,16 +121,22 @@ def main():
     cache = {}
     cmp_head = (" | --compare wall | user + system | peak memory | --compare / bouncecal (CPU) "
                 "| --compare / bouncecal (wall)" if a.compare else "")
-    print("| rate | length | drops found | bouncecal wall | user | system | peak memory "
+    print("| rate | length | drops found | impacts (minute's x N) | max abs dt / sigma "
+          "| bouncecal wall | user | system | peak memory "
           "| aubioonset -H 256 wall | user + system | peak memory "
           "| aubio / bouncecal (CPU) | aubio / bouncecal (wall)" + cmp_head + " |")
-    print("|---" * (12 + (5 if a.compare else 0)) + "|")
+    print("|---" * (14 + (5 if a.compare else 0)) + "|")
+    minute = {}
     for rate in a.rates:
         for minutes in a.minutes:
             path = make_file(a.bouncecal, work, rate, minutes, cache)
+            if rate not in minute:  # the synthesized minute, detected whole
+                one_json = os.path.join(work, "detect_one.json")
+                timed([a.bouncecal, "detect", "--json", cache[rate]] + threads_of(a), one_json)
+                minute[rate] = sequences_of(one_json)
             out_json = os.path.join(work, "detect.json")
             cmp_json = os.path.join(work, "detect_compare.json")
-            threads = [] if a.threads is None else ["--threads", str(a.threads)]
+            threads = threads_of(a)
             best = ab = other = None
             for _ in range(a.repeat):  # the tools take turns, so that load shifts hit all
                 t = timed([a.bouncecal, "detect", "--json", path] + threads, out_json)
@@ -100,8 +147,12 @@ def main():
                 if a.compare:
                     t = timed([a.compare, "detect", "--json", path] + threads, cmp_json)
                     other = t if other is None or t[1] + t[2] < other[1] + other[2] else other
-            with open(out_json) as f:
-                found = len(json.load(f)["sequences"])
+            long_seqs = sequences_of(out_json)
+            found = len(long_seqs)
+            n_imp, n_diff, worst, unmatched = against_minute(long_seqs, minute[rate])
+            agree = "%d of %d (%d)%s" % (n_imp, minutes * sum(len(q) for q in minute[rate]),
+                                         n_diff, "" if not unmatched else
+                                         ", %d sequences unmatched" % unmatched)
             if a.compare:
                 with open(out_json, "rb") as f1, open(cmp_json, "rb") as f2:
                     if f1.read() != f2.read():
@@ -117,13 +168,17 @@ def main():
                 oth = (" | %.2f s | %.2f s | %.0f MB | %.2f | %.2f" %
                        (other[0], other[1] + other[2], other[3] / 1024,
                         (other[1] + other[2]) / max(cpu, 1e-3), other[0] / max(best[0], 1e-3)))
-            print("| %d kHz | %d min | %d of %d | %.2f s | %.2f s | %.2f s | %.0f MB | %s%s |" %
-                  (rate // 1000, minutes, found, 6 * minutes, best[0], best[1], best[2],
-                   best[3] / 1024, aub, oth))
+            print("| %d kHz | %d min | %d of %d | %s | %.3f | %.2f s | %.2f s | %.2f s | %.0f MB "
+                  "| %s%s |" % (rate // 1000, minutes, found, 6 * minutes, agree, worst, best[0],
+                                best[1], best[2], best[3] / 1024, aub, oth))
             sys.stdout.flush()
             os.remove(path)
     if not a.work:
         shutil.rmtree(work)
+
+
+def threads_of(a):
+    return [] if a.threads is None else ["--threads", str(a.threads)]
 
 
 if __name__ == "__main__":

@@ -153,6 +153,9 @@ def main():
             agree = "%d of %d (%d)%s" % (n_imp, minutes * sum(len(q) for q in minute[rate]),
                                          n_diff, "" if not unmatched else
                                          ", %d sequences unmatched" % unmatched)
+            worst_cell = "%.3f" % worst
+            if minutes == 1:  # the minute itself: the reference, not a comparison
+                agree, worst_cell = "%d (the reference)" % n_imp, "-"
             if a.compare:
                 with open(out_json, "rb") as f1, open(cmp_json, "rb") as f2:
                     if f1.read() != f2.read():
@@ -168,9 +171,9 @@ def main():
                 oth = (" | %.2f s | %.2f s | %.0f MB | %.2f | %.2f" %
                        (other[0], other[1] + other[2], other[3] / 1024,
                         (other[1] + other[2]) / max(cpu, 1e-3), other[0] / max(best[0], 1e-3)))
-            print("| %d kHz | %d min | %d of %d | %s | %.3f | %.2f s | %.2f s | %.2f s | %.0f MB "
-                  "| %s%s |" % (rate // 1000, minutes, found, 6 * minutes, agree, worst, best[0],
-                                best[1], best[2], best[3] / 1024, aub, oth))
+            print("| %d kHz | %d min | %d of %d | %s | %s | %.2f s | %.2f s | %.2f s | %.0f MB "
+                  "| %s%s |" % (rate // 1000, minutes, found, 6 * minutes, agree, worst_cell,
+                                best[0], best[1], best[2], best[3] / 1024, aub, oth))
             sys.stdout.flush()
             os.remove(path)
     if not a.work:

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """bench_long — what detection of a long recording costs: time, system time and peak memory
-against the recording's length and rate, side by side with aubioonset on the same file.
+against the recording's length and rate, side by side with aubioonset on the same file, and how
+far its detection in blocks agrees with a whole detection of the same audio.
 
     python3 tools/bench_long.py                        # 1, 10, 30, 60 min at 48 and 384 kHz
     python3 tools/bench_long.py --minutes 1 10 --rates 48000 --bouncecal build/bouncecal
@@ -8,16 +9,17 @@ against the recording's length and rate, side by side with aubioonset on the sam
 Each file is one synthesized minute of steel-on-copper drops (`bouncecal synth --drops 6
 --duration 60`, 16-bit WAV) repeated end to end, so an N-minute file holds 6 N drops. Every
 figure is a whole process as a user waits for it (`/usr/bin/time`: wall, user and system CPU,
-maximum resident set size), the run with the least CPU time (user + system) of --repeat; `bouncecal detect --json` is checked to
-find every drop (one sequence per drop), and compared with the detection of the synthesized
-minute alone (one block, whole): every minute of the long file holds the same samples, so a
-long file detected in blocks should find, minute by minute, the same impacts at the same times.
-Two columns say how far it does: the impacts found against N times the minute's (and the sum
-over sequences of the difference in their member counts: the quiet last impacts of a sequence
-are decided by its block's own statistics), and the largest time difference of an impact found
-in both, over its sigma, among impacts at least 3 dB above the noise. aubioonset runs with `-H 256` (its hop of 5.3 ms at
-48 kHz; bouncecal's onsets are ~0.33 ms) on the same file in the same loop (the tools take turns
-each repeat; --compare adds another bouncecal build, e.g. main's, checked to print the same JSON), so the ratio column
+maximum resident set size), the run with the least CPU time (user + system) of --repeat;
+`bouncecal detect --json` is checked to find every drop (one sequence per drop), and compared
+with the detection of the synthesized minute alone (one block, whole): every minute of the long
+file holds the same samples, so a long file detected in blocks should find, minute by minute,
+the same impacts at the same times. Two columns say how far it does: the impacts found against N
+times the minute's (and the sum over sequences of the difference in their member counts: the
+quiet last impacts of a sequence are decided by its block's own statistics), and the largest
+time difference of an impact found in both, over its sigma, among impacts at least 3 dB above
+the noise. aubioonset runs with `-H 256` (its hop of 5.3 ms at 48 kHz; bouncecal's onsets are
+~0.33 ms) on the same file in the same loop (the tools take turns each repeat; --compare adds
+another bouncecal build, e.g. main's, checked to print the same JSON), so the ratio column
 compares two measurements taken side by side: CPU time (user + system), which a shared machine's
 load disturbs far less, and wall time, what a user waits for (bouncecal may use several threads,
 --threads; aubioonset uses one). Prints one Markdown table.

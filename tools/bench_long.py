@@ -129,16 +129,16 @@ def main():
           "| aubio / bouncecal (CPU) | aubio / bouncecal (wall)" + cmp_head + " |")
     print("|---" * (14 + (5 if a.compare else 0)) + "|")
     minute = {}
+    threads = [] if a.threads is None else ["--threads", str(a.threads)]
     for rate in a.rates:
         for minutes in a.minutes:
             path = make_file(a.bouncecal, work, rate, minutes, cache)
             if rate not in minute:  # the synthesized minute, detected whole
                 one_json = os.path.join(work, "detect_one.json")
-                timed([a.bouncecal, "detect", "--json", cache[rate]] + threads_of(a), one_json)
+                timed([a.bouncecal, "detect", "--json", cache[rate]] + threads, one_json)
                 minute[rate] = sequences_of(one_json)
             out_json = os.path.join(work, "detect.json")
             cmp_json = os.path.join(work, "detect_compare.json")
-            threads = threads_of(a)
             best = ab = other = None
             for _ in range(a.repeat):  # the tools take turns, so that load shifts hit all
                 t = timed([a.bouncecal, "detect", "--json", path] + threads, out_json)
@@ -180,10 +180,6 @@ def main():
             os.remove(path)
     if not a.work:
         shutil.rmtree(work)
-
-
-def threads_of(a):
-    return [] if a.threads is None else ["--threads", str(a.threads)]
 
 
 if __name__ == "__main__":

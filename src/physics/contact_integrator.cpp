@@ -652,8 +652,7 @@ class ContactIntegration {
     CheckStuck();
     if (done_) return;
     const double end_overlap_m =
-        (sys_.root() > 4 ? kTuning<M>.approach_end_overlap_q6 : kTuning<M>.approach_end_overlap) *
-        kPeakOverlapEstimate * Scale().length_m;
+        ApproachEndOverlapFraction() * kPeakOverlapEstimate * Scale().length_m;
     if (here_.delta_dot < kTuning<M>.approach_end_speed * Scale().speed_m_s ||
         here_.delta > end_overlap_m) {
       ToTime();
@@ -731,6 +730,9 @@ class ContactIntegration {
   void RestartOnOtherBranch(double t, double t_w, const State& x_dense);
   void CheckStuck();
   bool EnterExit() const;
+  double ApproachEndOverlapFraction() const {
+    return sys_.root() > 4 ? kTuning<M>.approach_end_overlap_q6 : kTuning<M>.approach_end_overlap;
+  }
   double ExitOverlapFraction() const {
     return sys_.root() == 2 ? kTuning<M>.exit_overlap_q2 : kExitOverlapFraction;
   }

@@ -162,6 +162,12 @@ void PrintHuman(const ContactLaw& law, const std::vector<double>& p, const Simul
       "%.6g, internal %.6g, balance error %.3g\n",
       e.initial_j, e.final_mechanical_j, e.dissipated_contact_j, e.dissipated_drag_j, e.internal_j,
       e.balance_error_j);
+  if (s.map_panels + s.map_panels_refused > 0) {
+    std::printf(
+        "contact map: %d contacts interpolated (steps 0) from %d panels, %d panels refused by "
+        "their check (integrated); --integrate integrates every contact\n",
+        s.mapped_contacts, s.map_panels, s.map_panels_refused);
+  }
   std::printf("stop: %s (%s)\n", StopReasonName(s.stop_reason), s.stop_detail.c_str());
 }
 
@@ -251,6 +257,7 @@ void Run(const SimulateFlags& f) {
   SimulatorOptions options;
   if (f.rtol) options.rel_tolerance = *f.rtol;
   options.use_closed_form = !f.integrate;
+  options.contact_map = !f.integrate;
   std::string why;
   if (!options.IsValid(&why)) throw Error(ErrorCode::kUsage, "--rtol: " + why);
   const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
@@ -287,7 +294,8 @@ void RegisterSimulate(CLI::App& app) {
   sub->add_option("--horizon", flags->horizon_s, "stop after this time, s (scene limits)");
   sub->add_option("--max-impacts", flags->max_impacts, "stop after this many impacts");
   sub->add_flag("--integrate", flags->integrate,
-                "integrate every contact even where the law has a closed form");
+                "integrate every contact even where the law has a closed form or the contact map "
+                "would serve it");
   sub->add_flag("--json", flags->json, "JSON on stdout");
   sub->add_flag("--csv", flags->csv, "CSV of the impacts on stdout");
   sub->callback([flags]() { Run(*flags); });

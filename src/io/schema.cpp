@@ -312,6 +312,8 @@ json SimulationJson(const Scene& scene, const ContactLaw& law, const std::vector
   j["stop_reason"] = StopReasonName(s.stop_reason);
   j["stop_detail"] = s.stop_detail;
   j["total_steps"] = s.total_steps;
+  j["contact_map"] = {
+      {"contacts", s.mapped_contacts}, {"panels", s.map_panels}, {"refused", s.map_panels_refused}};
   j["warnings"] = json::array();
   return j;
 }

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <type_traits>
 
@@ -14,6 +15,7 @@
 #include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/flight.hpp"
+#include "physics/contact_map.hpp"
 #include "physics/scalar.hpp"
 
 namespace bouncecal {
@@ -258,6 +260,36 @@ Setup Prepare(const Scene& scene, const ContactLaw& law, std::span<const double>
   return s;
 }
 
+// The contact map of a simulation: its contacts integrated as the loop integrates them.
+ContactMap MakeMap(const Setup& setup, const ContactLaw& law, std::span<const double> params,
+                   double g, const SimulatorOptions& options, const SimulationLimits& lim) {
+  const double g_contact = options.gravity_in_contact ? g : 0.0;
+  return ContactMap(
+      [&setup, &law, params, g_contact](double v_in, const ContactRunOptions& o) {
+        const double t_c = EstimateContactTime(law, params, *setup.dynamics, setup.body, v_in);
+        return RunContact(*setup.dynamics, setup.body, t_c, v_in, g_contact, setup.plate, o);
+      },
+      RunOptions(options, 0.0, law.Name()), setup.body.mass_kg, lim.rest_speed_m_s,
+      options.stuck_restitution);
+}
+
+// The map's outcome for a contact at v_in it serves (not one the law's closed form solves),
+// given the latest ratio of successive arrival speeds (0: none yet) and the impacts left.
+std::optional<ContactRun> MappedContact(ContactMap* map, const Setup& setup, const ContactLaw& law,
+                                        std::span<const double> params, double g,
+                                        const SimulatorOptions& options, double v_in,
+                                        double stuck_speed, double last_ratio, int left) {
+  const double g_contact = options.gravity_in_contact ? g : 0.0;
+  if (!(last_ratio > 0.0) ||
+      ClosedForm(law, params, setup.body, v_in, g_contact, options, setup.plate != nullptr)) {
+    return std::nullopt;
+  }
+  // The contacts left down to half this speed at the latest ratio, within the limit.
+  const double expected =
+      last_ratio < 1.0 ? std::min<double>(left, std::log(2.0) / -std::log(last_ratio)) : left;
+  return map->Find(v_in, stuck_speed, expected);
+}
+
 template <class T>
 void RecordSensitivities(const T& t, const T& v, const Contact<T>& c, size_t directions,
                          SimulationSensitivities* out) {
@@ -299,7 +331,18 @@ Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double
   if constexpr (std::is_same_v<T, Jet>) v.v[static_cast<int>(params.size())] = 1.0;
   T t(scene.drop.first_impact_time_s);
 
+  // The contact map (SimulatorOptions::contact_map), for the plain path only.
+  std::optional<ContactMap> map;
+  if (std::is_same_v<T, double> && options.contact_map)
+    map = MakeMap(setup, law, params, g, options, lim);
+  double last_ratio = 0.0;  // the latest arrival speed over the one before (0: none yet)
+
   auto stop = [&](StopReason reason, const std::string& detail, double final_j) {
+    if (map) {
+      sim.total_steps += map->steps();
+      sim.map_panels = map->panels();
+      sim.map_panels_refused = map->refused();
+    }
     sim.stop_reason = reason;
     sim.stop_detail = detail;
     en.final_mechanical_j = final_j;
@@ -322,8 +365,16 @@ Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double
                   0.5 * m * vv * vv);
     }
     const double stuck_speed = std::max(lim.rest_speed_m_s, options.stuck_restitution * vv);
-    const Contact<T> contact = OneContact<T>(law, params, *setup.dynamics, setup.body, v, g,
-                                             setup.plate, options, stuck_speed);
+    const std::optional<ContactRun> mapped =
+        map ? MappedContact(&*map, setup, law, params, g, options, vv, stuck_speed, last_ratio,
+                            lim.max_impacts - k)
+            : std::nullopt;
+    const Contact<T> contact = mapped
+                                   ? Contact<T>{*mapped, T(mapped->v_out_m_s), T(mapped->contact_s),
+                                                T(mapped->separation_depth_m)}
+                                   : OneContact<T>(law, params, *setup.dynamics, setup.body, v, g,
+                                                   setup.plate, options, stuck_speed);
+    if (mapped) ++sim.mapped_contacts;
     const ContactRun& c = contact.run;
     sim.total_steps += c.steps;
     SimImpact imp;
@@ -390,6 +441,7 @@ Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double
     // Zeno: with restitution e < 1 the remaining flights form (at most) a geometric series
     // T e / (1 - e) (flight time is proportional to, or grows slower than, the launch speed).
     const double e = v0v / vv;
+    last_ratio = Val(v_next) / vv;
     t = t_next;
     v = v_next;
     if (e < 1.0 && Val(flight_s) * e / (1.0 - e) < options.time_resolution_s) {

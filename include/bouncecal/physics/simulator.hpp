@@ -62,6 +62,14 @@ struct SimulatorOptions {
   // A contact whose remaining energy cannot return the ball faster than
   // max(limits.rest_speed_m_s, stuck_restitution * v_in) counts as stuck.
   double stuck_restitution = 1e-6;
+  // Long tails of nearly elastic bounces (the Hunt-Crossley family's thousands of slow
+  // contacts) from a contact map: each contact's outcome interpolated in the impact speed from
+  // contacts integrated 100 times tighter, every panel of the map checked against three more
+  // such contacts before use (src/physics/contact_map.hpp). Built only where it saves
+  // integrations (restitution above ~0.995, enough impacts left) and for rel_tolerance >= 1e-11;
+  // contacts near the stuck speed are integrated. Off by default (the sensitivity path and the
+  // fits integrate every contact); `simulate` turns it on unless --integrate.
+  bool contact_map = false;
   bool IsValid(std::string* error) const;
 };
 
@@ -72,7 +80,7 @@ struct SimImpact {
   double contact_s = 0.0;
   double peak_overlap_m = 0.0;
   double peak_force_n = 0.0;
-  int steps = 0;  // integrator steps (0 for closed form), rejected ones included
+  int steps = 0;  // integrator steps (0 for closed form or the contact map), rejected included
   int rejected_steps = 0;
 };
 
@@ -94,7 +102,12 @@ struct Simulation {
   EnergyLedger energy;
   StopReason stop_reason = StopReason::kAtRest;
   std::string stop_detail;  // human-readable why
-  long total_steps = 0;
+  long total_steps = 0;     // the contacts' and the contact map's integrations
+  // SimulatorOptions::contact_map: the impacts whose contact came from the map, and its panels
+  // (accepted, and refused by their check: those speeds were integrated).
+  int mapped_contacts = 0;
+  int map_panels = 0;
+  int map_panels_refused = 0;
 };
 
 // Throws Error(kBadParameter / kBadScene) for invalid inputs.

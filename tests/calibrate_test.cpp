@@ -457,6 +457,47 @@ TEST(CalibrateCompare, OnlyAdequateLawsAreRanked) {
   EXPECT_DOUBLE_EQ(Param(rows.front().fit, "A").value, Param(single, "A").value);
 }
 
+// ---- threads
+// --------------------------------------------------------------------------------------
+
+// A law without a closed-form e(v) whose contacts are costly (Jiang-Liu, at a tolerance where a
+// contact takes ~100 steps) has each evaluation's contacts spread over the threads: the fit is
+// the same to the last bit whatever the count (CalibrationOptions::threads), and so is the law
+// comparison run with it.
+TEST(CalibrateThreads, SimulatedContactsOnSeveralThreadsGiveTheSameFit) {
+  Scene truth = SteelScene("jiang-liu");
+  truth.law.parameters["eta"] = 1.0;
+  truth.drop.height_m = 0.5;
+  oracle_truth::Options o;
+  o.scatter_e = 0.002;
+  o.timing_sigma_s = 5e-6;
+  const auto t = oracle_truth::Make(truth, o);
+  ASSERT_GT(t.sequence.impacts.size(), 12u);  // the fit's grid of 12 simulated speeds
+  CalibrationOptions one, two;
+  one.rel_tolerance = two.rel_tolerance = 1e-11;
+  two.threads = 2;
+  const Calibration a = Calibrate({{"x", t.sequence}}, Start(truth), one);
+  const Calibration b = Calibrate({{"x", t.sequence}}, Start(truth), two);
+  EXPECT_EQ(a.outcome, FitOutcome::kConverged) << a.message;
+  EXPECT_EQ(b.outcome, a.outcome);
+  ASSERT_EQ(a.parameters.size(), b.parameters.size());
+  auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };
+  for (size_t i = 0; i < a.parameters.size(); ++i) {
+    EXPECT_EQ(a.parameters[i].value, b.parameters[i].value) << a.parameters[i].name;
+    EXPECT_TRUE(same(a.parameters[i].sigma, b.parameters[i].sigma)) << a.parameters[i].name;
+  }
+  EXPECT_EQ(a.simulations, b.simulations);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.scatter_e, b.scatter_e);
+  // The fit recovers the truth (the threads changed nothing a test of the fit would see).
+  EXPECT_NEAR(Param(b, "eta").value, 1.0, 4.0 * Param(b, "eta").sigma + 1e-6);
+  CalibrationOptions bad;
+  bad.threads = 0;
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_NE(why.find("threads"), std::string::npos) << why;
+}
+
 // ---- audio round trip ---------------------------------------------------------------------------
 
 TEST(Calibrate, AudioRoundTripRenderDetectFit) {

@@ -279,6 +279,9 @@ CalibrationOptions Options(const CalibrateArgs& a, const GivenScene& gs) {
   opts.loss_scale_sigma = a.loss_scale;
   opts.max_iterations = a.max_iterations;
   opts.max_starts = a.starts;
+  // One law's simulated contacts on the --jobs threads (with --law all as well, alongside the
+  // laws run concurrently); --batch runs whole fits on them instead.
+  opts.threads = a.batch ? 1 : a.jobs;
   opts.estimate_scatter = !a.no_scatter;
   opts.use_drop = gs.drop_given && !a.ignore_drop;
   // Drag off by the user's explicit choice: no drag check.
@@ -480,8 +483,9 @@ void RegisterCalibrate(CLI::App& app) {
   sub->add_flag("--json", args->json, "print the parameter-file object to stdout");
   sub->add_flag("--csv", args->csv, "print CSV");
   sub->add_option("--jobs", args->jobs,
-                  "worker threads (detection, --batch fits, --law all); default: the machine's "
-                  "cores, at most 8 (results do not depend on it)");
+                  "worker threads (detection, --batch fits, --law all, one law's simulated "
+                  "contacts); default: the machine's cores, at most 8 (results do not depend on "
+                  "it)");
   sub->add_flag("--batch", args->batch, "fit each file separately, one summary line per file");
   AddOutputOption(sub, "--report", &args->report.html, "also write the HTML report of this fit");
   AddOutputOption(sub, "--plot", &args->report.plot,

@@ -240,6 +240,8 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
   };
   std::vector<Job> todo;
   for (const LawInfo& info : RegisteredLaws()) {
+    // Each law may spread its simulated contacts over options.threads too: the slow fits
+    // started first then use the cores the short ones leave idle.
     Job job{scene, options, {}};
     if (info.name == scene.law.name) {
       job.scene.law = scene.law;
@@ -396,6 +398,9 @@ bool CalibrationOptions::IsValid(std::string* error) const {
   }
   if (max_iterations < 1 || max_iterations > 10000) {
     return fail("max_iterations = " + std::to_string(max_iterations) + " must be in [1, 10000]");
+  }
+  if (threads < 1 || threads > 256) {
+    return fail("threads = " + std::to_string(threads) + " must be in [1, 256]");
   }
   if (max_starts < 1 || max_starts > 100) {
     return fail("max_starts = " + std::to_string(max_starts) + " must be in [1, 100]");

@@ -43,6 +43,12 @@ struct LawSetup {
   std::vector<double> scale;  // per free parameter
   bool has_gradient = false;  // RestitutionGradient works
   bool has_closed_e = false;  // Restitution works
+  // Contacts may be simulated on several threads at once (CalibrationOptions::threads): every
+  // law but the expression law, whose parser keeps state between evaluations.
+  bool concurrent = true;
+  // Integrator steps of one simulated contact at 1 m/s at the start values (0: not probed):
+  // what one contact of this law costs, for deciding whether an evaluation is worth a thread.
+  int contact_steps = 0;
 
   const std::vector<ParameterSpec>& specs() const { return law->Parameters(); }
   std::vector<double> Full(const double* u) const;  // free values (scaled) -> full vector

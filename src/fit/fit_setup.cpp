@@ -176,6 +176,8 @@ LawSetup MakeLawSetup(const Scene& scene, const CalibrationOptions& options) {
   const double v_probe = 1.0;
   s.has_closed_e = s.law->Restitution(s.start, s.body, v_probe).has_value();
   s.has_gradient = s.law->RestitutionGradient(s.start, s.body, v_probe, &e, de.data());
+  const LawInfo* info = FindLaw(s.law->Name());
+  s.concurrent = info != nullptr && !info->needs_expression;
   for (int i : s.free) s.scale.push_back(s.typical[static_cast<size_t>(i)]);
   return s;
 }
@@ -266,6 +268,15 @@ FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const S
   fp.g = scene.EffectiveGravity();
   fp.sim.rel_tolerance = options.rel_tolerance;
   fp.sim.abs_tolerance = std::min(1e-12, options.rel_tolerance * 1e-3);
+  if (!fp.setup.has_closed_e && fp.setup.concurrent && options.threads > 1) {
+    // Not counted as a fit simulation: it decides only how the work is scheduled.
+    try {
+      SimulateContact(*fp.setup.law, fp.setup.start, fp.setup.body, 1.0, fp.g, fp.sim,
+                      &fp.setup.contact_steps);
+    } catch (const Error&) {
+      fp.setup.contact_steps = 0;  // the fit reports the failure where it meets it
+    }
+  }
   AnalyzeRecordings(&fp, recordings, nullptr);
   if (fp.not_determinable.empty()) CountData(&fp, recordings);
   return fp;

@@ -96,6 +96,11 @@ struct CalibrationOptions {
   // Start points tried (the best fit wins; others that end elsewhere with an equally good fit
   // give starts_disagree). 1 = only the best guess.
   int max_starts = 4;
+  // Threads for the simulated contacts of a law without a closed-form e(v): the contacts at
+  // the points' speeds (and their difference quotients) of one evaluation run concurrently.
+  // The result does not depend on it (each contact is computed as on one thread). The
+  // expression law (its parser keeps state) always uses one.
+  int threads = 1;
   // Number of points of the e(v) table over the measured speed range.
   int e_of_v_points = 8;
   // A free parameter whose relative 1-sigma exceeds this (or that lies in the numerical null

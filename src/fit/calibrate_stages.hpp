@@ -13,6 +13,7 @@
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -87,6 +88,13 @@ struct FitProblem {
   double scatter_start = 0.0;             // sigma_s from the screens (start of the fit)
   std::string seed_note;                  // how the start values were chosen
 };
+
+// Runs task(k) for k in [0, n), each the `contacts` simulated contacts at one speed: on
+// CalibrationOptions::threads threads when the law allows it (LawSetup::concurrent) and the
+// work is worth a thread (n * contacts * LawSetup::contact_steps integrator steps); each k's
+// result is computed as on one thread, so the values do not depend on the count.
+void ForEachSpeed(const FitProblem& fp, std::size_t n, int contacts,
+                  const std::function<void(std::size_t)>& task);
 
 // Stage 1. Bad input throws (kUsage options, kBadScene scene, kBadParameter names); what the
 // data cannot give is recorded in not_determinable.

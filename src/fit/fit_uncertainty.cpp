@@ -93,12 +93,12 @@ Eigen::VectorXd ModelColumn(const FitProblem& fp, const std::vector<double>& p, 
   std::string err;
   if (!s.law->IsValid(qh, s.body, &err) || !s.law->IsValid(ql, s.body, &err)) return col;
   try {
-    for (int k = 0; k < fp.data.size(); ++k) {
-      const double u = fp.data.points[static_cast<size_t>(k)].u_m_s;
-      col(k) = (ModelRestitution(s, qh, u, fp.g, fp.sim, sims) -
-                ModelRestitution(s, ql, u, fp.g, fp.sim, sims)) /
-               (hi - lo);
-    }
+    ForEachSpeed(fp, static_cast<std::size_t>(fp.data.size()), 2, [&](std::size_t k) {
+      const double u = fp.data.points[k].u_m_s;
+      col(static_cast<Eigen::Index>(k)) = (ModelRestitution(s, qh, u, fp.g, fp.sim, sims) -
+                                           ModelRestitution(s, ql, u, fp.g, fp.sim, sims)) /
+                                          (hi - lo);
+    });
   } catch (const Error&) {
     col.setZero();
   }
@@ -300,9 +300,11 @@ Uncertainty EstimateUncertainty(const FitProblem& fp, const Solution& s, std::at
   u.v_max_m_s = hi;
   const int n = fp.options.e_of_v_points;
   const double rel = su.has_closed_e ? 1e-6 : RelativeStep(fp.options.rel_tolerance);
-  for (int q = 0; q < n; ++q) {
+  // The table's points at once (ForEachSpeed), kept in speed order.
+  std::vector<std::optional<EOfVPoint>> points(static_cast<size_t>(n));
+  ForEachSpeed(fp, static_cast<std::size_t>(n), 1 + 2 * static_cast<int>(na), [&](std::size_t q) {
     EOfVPoint pt;
-    pt.v_m_s = lo * std::pow(hi / lo, q / double(n - 1));
+    pt.v_m_s = lo * std::pow(hi / lo, static_cast<double>(q) / double(n - 1));
     try {
       pt.e = ModelRestitution(su, s.p, pt.v_m_s, fp.g, fp.sim, sims);
       Eigen::VectorXd grad(na);
@@ -321,10 +323,12 @@ Uncertainty EstimateUncertainty(const FitProblem& fp, const Solution& s, std::at
       }
       pt.sigma = std::sqrt(std::max(grad.dot(u.covariance * grad), 0.0));
     } catch (const Error&) {
-      continue;
+      return;
     }
-    if (std::isfinite(pt.e)) u.e_of_v.push_back(pt);
-  }
+    if (std::isfinite(pt.e)) points[q] = pt;
+  });
+  for (const auto& pt : points)
+    if (pt) u.e_of_v.push_back(*pt);
   return u;
 }
 

@@ -36,23 +36,6 @@ std::vector<int> Active(const LawSetup& s, const std::vector<bool>& held) {
   return a;
 }
 
-// Integrator steps an evaluation must hold to be spread over threads: starting one costs
-// ~50 us, a DOP853 step 0.25-0.5 us. Measured on the bundled recording (2 cores): jiang-liu's
-// contacts (58-134 steps each, 12 speeds x 3 contacts per evaluation with the Jacobian) 290 ->
-// 205 ms wall; the Hunt-Crossley family's (24 steps) gained nothing and cost 5 ms more CPU.
-constexpr double kSpreadSteps = 2000.0;
-
-// Runs task(k) for k in [0, n), each the `contacts` simulated contacts at one speed: on
-// CalibrationOptions::threads threads when the law allows it and the evaluation is worth it
-// (each k's result is computed as on one thread, so the values do not depend on the count).
-void ForEachSpeed(const FitProblem& fp, std::size_t n, int contacts,
-                  const std::function<void(std::size_t)>& task) {
-  const LawSetup& s = fp.setup;
-  const double steps = static_cast<double>(n) * contacts * s.contact_steps;
-  const bool spread = !s.has_closed_e && s.concurrent && steps >= kSpreadSteps;
-  ParallelFor(spread ? fp.options.threads : 1, n, task);
-}
-
 // The law's e at the given speeds and, when asked, de/du_j for the active scaled parameters.
 bool EvaluateAt(const FitProblem& fp, const std::vector<double>& p, const std::vector<int>& active,
                 const std::vector<double>& speeds, Eigen::VectorXd* e, Eigen::MatrixXd* jac,

@@ -183,6 +183,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
                         " is >= 1: these impacts do not form a damped bounce sequence");
   }
   const std::vector<std::vector<double>> starts = calib::MakeStarts(&fp, &simulations);  // 2
+  calib::ProbeContactCost(&fp, starts.front());
   if (scene.effects.contact_duration) {
     // The law's own contact durations at its best start (they change with the damping only
     // at the percent level of a few-percent change of the damping).

@@ -47,8 +47,9 @@ struct LawSetup {
   // Contacts may be simulated on several threads at once (CalibrationOptions::threads): every
   // law but the expression law, whose parser keeps state between evaluations.
   bool concurrent = true;
-  // Integrator steps of one simulated contact at 1 m/s at the start values (0: not probed):
-  // what one contact of this law costs, for deciding whether an evaluation is worth a thread.
+  // Integrator steps of one simulated contact at the median measured speed at the first start
+  // point (ProbeContactCost; 0: not probed): what one contact of this law costs, for deciding
+  // whether an evaluation is worth a thread.
   int contact_steps = 0;
 
   const std::vector<ParameterSpec>& specs() const { return law->Parameters(); }
@@ -88,6 +89,10 @@ struct FitProblem {
   double scatter_start = 0.0;             // sigma_s from the screens (start of the fit)
   std::string seed_note;                  // how the start values were chosen
 };
+
+// Sets setup.contact_steps from one contact at the points' median speed with parameters p
+// (when the fit may spread its contacts over threads).
+void ProbeContactCost(FitProblem* fp, const std::vector<double>& p);
 
 // Runs task(k) for k in [0, n), each the `contacts` simulated contacts at one speed: on
 // CalibrationOptions::threads threads when the law allows it (LawSetup::concurrent) and the

@@ -185,10 +185,11 @@ LawSetup MakeLawSetup(const Scene& scene, const CalibrationOptions& options) {
 }
 
 // Integrator steps an evaluation must hold to be spread over threads: starting one costs
-// ~50 us, a DOP853 step 0.25-0.5 us. Measured on the bundled recording (2 cores): jiang-liu's
-// contacts (58-134 steps each, 12 speeds x 3 contacts per evaluation with the Jacobian) 290 ->
-// 205 ms wall; the Hunt-Crossley family's (24 steps) gained nothing and cost 5 ms more CPU.
-constexpr double kSpreadSteps = 2000.0;
+// ~50 us, a DOP853 step 0.25-0.5 us. Measured on the bundled recording (2 cores, 11 alternating
+// runs): jiang-liu's contacts (~134 steps each at its fitted damping; 12 speeds x 3 contacts per
+// evaluation with the Jacobian) 286 -> 182 ms wall; the Hunt-Crossley family's (24 steps: 864
+// per evaluation, below the bound) gained nothing when spread and cost 5 ms more CPU.
+constexpr double kSpreadSteps = 1200.0;
 
 // Runs task(k) for k in [0, n), each the `contacts` simulated contacts at one speed: on
 // CalibrationOptions::threads threads when the law allows it and the evaluation is worth it
@@ -287,18 +288,22 @@ FitProblem SetUpProblem(const std::vector<CalibrationInput>& recordings, const S
   fp.g = scene.EffectiveGravity();
   fp.sim.rel_tolerance = options.rel_tolerance;
   fp.sim.abs_tolerance = std::min(1e-12, options.rel_tolerance * 1e-3);
-  if (!fp.setup.has_closed_e && fp.setup.concurrent && options.threads > 1) {
-    // Not counted as a fit simulation: it decides only how the work is scheduled.
-    try {
-      SimulateContact(*fp.setup.law, fp.setup.start, fp.setup.body, 1.0, fp.g, fp.sim,
-                      &fp.setup.contact_steps);
-    } catch (const Error&) {
-      fp.setup.contact_steps = 0;  // the fit reports the failure where it meets it
-    }
-  }
   AnalyzeRecordings(&fp, recordings, nullptr);
   if (fp.not_determinable.empty()) CountData(&fp, recordings);
   return fp;
+}
+
+void ProbeContactCost(FitProblem* fp, const std::vector<double>& p) {
+  LawSetup& s = fp->setup;
+  s.contact_steps = 0;
+  if (s.has_closed_e || !s.concurrent || fp->options.threads < 2) return;
+  // Not counted as a fit simulation: it decides only how the work is scheduled.
+  try {
+    const double v = fp->v_median > 0.0 ? fp->v_median : 1.0;
+    SimulateContact(*s.law, p, s.body, v, fp->g, fp->sim, &s.contact_steps);
+  } catch (const Error&) {
+    s.contact_steps = 0;  // the fit reports the failure where it meets it
+  }
 }
 
 std::vector<std::vector<double>> MakeStarts(FitProblem* fp, std::atomic<long>* simulations) {

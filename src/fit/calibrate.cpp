@@ -299,10 +299,18 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
   std::stable_sort(order.begin(), order.end(),
                    [&](size_t a, size_t b) { return rank[a] > rank[b]; });
   std::atomic<size_t> next{0};
+  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(todo.size())));
+  // A law's fit may spread its contacts over the workers that have no law left to fit
+  // (CalibrationOptions::available_threads): the slow fits started first get the cores the
+  // short ones leave, without more threads than cores while the others still run.
+  std::atomic<int> running{n};
+  for (Job& job : todo) {
+    job.options.available_threads = [&running, n] { return n - running.load() + 1; };
+  }
   auto worker = [&]() {
     for (size_t i = next++; i < todo.size(); i = next++) run(todo[order[i]]);
+    --running;
   };
-  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(todo.size())));
   std::vector<std::thread> pool;
   for (int t = 1; t < n; ++t) pool.emplace_back(worker);
   worker();

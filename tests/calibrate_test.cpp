@@ -491,6 +491,22 @@ TEST(CalibrateThreads, SimulatedContactsOnSeveralThreadsGiveTheSameFit) {
   EXPECT_EQ(a.scatter_e, b.scatter_e);
   // The fit recovers the truth (the threads changed nothing a test of the fit would see).
   EXPECT_NEAR(Param(b, "eta").value, 1.0, 4.0 * Param(b, "eta").sigma + 1e-6);
+  // The law comparison: laws on two workers, each fit's contacts on the workers left idle.
+  CalibrationOptions spread;
+  spread.threads = 2;
+  const auto serial = CompareLaws({{"x", t.sequence}}, Start(truth), {}, 1);
+  const auto parallel = CompareLaws({{"x", t.sequence}}, Start(truth), spread, 2);
+  ASSERT_EQ(serial.size(), parallel.size());
+  for (size_t r = 0; r < serial.size(); ++r) {
+    SCOPED_TRACE(serial[r].fit.law);
+    EXPECT_EQ(serial[r].fit.law, parallel[r].fit.law);
+    EXPECT_EQ(serial[r].fit.outcome, parallel[r].fit.outcome);
+    EXPECT_EQ(serial[r].fit.simulations, parallel[r].fit.simulations);
+    ASSERT_EQ(serial[r].fit.parameters.size(), parallel[r].fit.parameters.size());
+    for (size_t i = 0; i < serial[r].fit.parameters.size(); ++i) {
+      EXPECT_EQ(serial[r].fit.parameters[i].value, parallel[r].fit.parameters[i].value);
+    }
+  }
   CalibrationOptions bad;
   bad.threads = 0;
   std::string why;

@@ -40,7 +40,7 @@ export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
 CI_ASAN_TESTS=(
   scene_test param_file_test impacts_file_test given_scene_test
   audio_test blocks_test onsets_test sequence_test detect_test
-  kinematics_test calibrate_test calibrate_cli_test hardening_test cli_test
+  kinematics_test calibrate_test calibrate_cli_test hardening_test cli_test contact_map_test
 )
 TSAN_TESTS=(calibrate_cli_test calibrate_test hardening_test blocks_test parallel_test)
 TSAN_REGEX='Batch|Jobs|LawComparison|CalibrateCompare|Parallel|Thread'

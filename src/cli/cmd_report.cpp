@@ -118,6 +118,7 @@ void Run(const ReportArgs& a) {
   // chose the drag.
   opts.use_drop = gs.drop_given && !a.ignore_drop;
   opts.analysis = ReportAnalysisOptions(gs);
+  opts.threads = a.jobs;  // one law's simulated contacts on the threads, as calibrate does
   if (!opts.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
   if (!all) CreateLaw(scene.law, scene);  // unknown law or parameter: fail before any work
   const DetectOptions detect = MakeDetectOptions(a.detect);
@@ -191,7 +192,8 @@ void RegisterReport(CLI::App& app) {
                 "do not use the scene's drop height/speed for the first impact (as calibrate)");
   AddDetectFlags(sub, &args->detect);
   sub->add_option("--jobs", args->jobs,
-                  "worker threads (--law all); default: the machine's cores, at most 8");
+                  "worker threads (--law all, one law's simulated contacts); default: the "
+                  "machine's cores, at most 8 (results do not depend on it)");
   sub->callback([args, sub]() {
     args->argv.clear();
     for (const std::string& f : args->files) args->argv.push_back(f);

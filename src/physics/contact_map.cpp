@@ -188,6 +188,13 @@ ContactRun ContactMap::Evaluate(const Panel& p, double v) const {
   return r;
 }
 
+bool ContactMap::MayServe(double v_in_m_s, double expected_contacts) const {
+  if (!(rel_tolerance_ >= kMinRelTolerance) || !(v_in_m_s > 0.0) || !std::isfinite(v_in_m_s))
+    return false;
+  const Panel* p = Covering(std::log(v_in_m_s));
+  return p != nullptr ? p->accepted : expected_contacts >= kBreakEvenContacts;
+}
+
 std::optional<ContactRun> ContactMap::Find(double v_in_m_s, double stuck_speed_m_s,
                                            double expected_contacts) {
   if (!(rel_tolerance_ >= kMinRelTolerance) || !(v_in_m_s > 0.0) || !std::isfinite(v_in_m_s))

@@ -52,6 +52,10 @@ class ContactMap {
   // down to v_in / 2) makes it pay. nullopt: integrate this contact as usual.
   std::optional<ContactRun> Find(double v_in_m_s, double stuck_speed_m_s, double expected_contacts);
 
+  // Whether Find could serve a contact at v_in_m_s (an accepted panel covers it, or none does
+  // and expected_contacts would pay for one): a cheap test before the caller's own checks.
+  bool MayServe(double v_in_m_s, double expected_contacts) const;
+
   int panels() const { return panels_; }
   int refused() const { return refused_; }
   long steps() const { return steps_; }  // of the panels' integrations, accepted or not

@@ -279,14 +279,16 @@ std::optional<ContactRun> MappedContact(ContactMap* map, const Setup& setup, con
                                         std::span<const double> params, double g,
                                         const SimulatorOptions& options, double v_in,
                                         double stuck_speed, double last_ratio, int left) {
-  const double g_contact = options.gravity_in_contact ? g : 0.0;
-  if (!(last_ratio > 0.0) ||
-      ClosedForm(law, params, setup.body, v_in, g_contact, options, setup.plate != nullptr)) {
-    return std::nullopt;
-  }
+  if (!(last_ratio > 0.0)) return std::nullopt;
   // The contacts left down to half this speed at the latest ratio, within the limit.
   const double expected =
       last_ratio < 1.0 ? std::min<double>(left, std::log(2.0) / -std::log(last_ratio)) : left;
+  // The closed form is asked only where the map could serve (OneContact asks it otherwise).
+  const double g_contact = options.gravity_in_contact ? g : 0.0;
+  if (!map->MayServe(v_in, expected) ||
+      ClosedForm(law, params, setup.body, v_in, g_contact, options, setup.plate != nullptr)) {
+    return std::nullopt;
+  }
   return map->Find(v_in, stuck_speed, expected);
 }
 

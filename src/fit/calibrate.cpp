@@ -241,8 +241,6 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
   };
   std::vector<Job> todo;
   for (const LawInfo& info : RegisteredLaws()) {
-    // Each law may spread its simulated contacts over options.threads too: the slow fits
-    // started first then use the cores the short ones leave idle.
     Job job{scene, options, {}};
     if (info.name == scene.law.name) {
       job.scene.law = scene.law;

@@ -11,14 +11,12 @@
 // REML profile (ScatterProblem::Fit); the two alternate until sigma_s settles.
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <tuple>
 #include <utility>
 
 #include <ceres/ceres.h>
 
 #include "bouncecal/core/error.hpp"
-#include "bouncecal/core/parallel.hpp"
 #include "fit/calibrate_stages.hpp"
 #include "fit/solver_options.hpp"
 

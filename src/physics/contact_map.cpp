@@ -3,8 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <numbers>
+#include <utility>
 
 namespace bouncecal {
 namespace {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -60,6 +61,25 @@ TEST(ResolveThreads, ZeroIsTheHardwareConcurrencyCapped) {
   const int automatic = ResolveThreads(0);
   EXPECT_GE(automatic, 1);
   EXPECT_LE(automatic, kMaxAutoThreads);
+}
+
+TEST(StageThreads, TheAvailableCountCapsTheRequestedOneAndNeverGoesBelowOne) {
+  int asked = 0;
+  auto available = [&asked](int n) {
+    return std::function<int()>([&asked, n] {
+      ++asked;
+      return n;
+    });
+  };
+  EXPECT_EQ(StageThreads(4, nullptr), 4);       // no cap
+  EXPECT_EQ(StageThreads(4, available(2)), 2);  // capped
+  EXPECT_EQ(StageThreads(4, available(9)), 4);  // never more than requested
+  EXPECT_EQ(StageThreads(4, available(0)), 1);  // at least the calling thread
+  EXPECT_EQ(StageThreads(4, available(-3)), 1);
+  EXPECT_EQ(asked, 4);
+  EXPECT_EQ(StageThreads(1, available(8)), 1);  // one thread: not asked
+  EXPECT_EQ(asked, 4);
+  EXPECT_EQ(StageThreads(0, available(1)), 1);
 }
 
 }  // namespace

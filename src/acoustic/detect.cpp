@@ -3,6 +3,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <condition_variable>
@@ -259,6 +260,7 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
   oo.lpc_order = options.lpc_order;
   oo.threads = options.threads;
+  oo.available_threads = options.available_threads;
   const OnsetDetector detector(oo, rate_hz);
   const OnsetResult onsets = detector.Detect(x);
   out.hop_samples = detector.hop_samples();
@@ -278,6 +280,7 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
 
   TimingOptions tim;
   tim.lpc_order = options.lpc_order;
+  tim.available_threads = options.available_threads;
   // Every timing round starts from the detector's own times (the anchors), not from the previous
   // round's output: a round that began there would move the AIC windows and the lag searches by
   // the previous round's result, and a member whose own AIC pick pointed a ringing cycle away
@@ -303,8 +306,8 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   // `detected` as it was before the round; one whose anchors a sequence before it in the round
   // changed (a detector time equal to another's timed time: never seen) is timed again here,
   // so the result is the serial one.
-  const int threads = ResolveThreads(options.threads);
   auto time_from_anchors = [&](const std::vector<Sequence*>& which) {
+    const int threads = StageThreads(options.threads, options.available_threads);
     std::vector<std::vector<double>> anchors(which.size());
     std::vector<Sequence> timed(which.size());
     for (std::size_t i = 0; i < which.size(); ++i) anchors[i] = anchors_of(*which[i]);
@@ -717,6 +720,12 @@ class BlockWorkers {
   BlockWorkers(const BlockWorkers&) = delete;
   BlockWorkers& operator=(const BlockWorkers&) = delete;
 
+  // Threads waiting for a block while none is queued.
+  int Idle() {
+    std::lock_guard<std::mutex> lock(m_);
+    return queue_.empty() ? waiting_ : 0;
+  }
+
   std::future<BlockResult> Submit(Block b) {
     std::future<BlockResult> f;
     {
@@ -746,7 +755,9 @@ class BlockWorkers {
       Job job;
       {
         std::unique_lock<std::mutex> lock(m_);
+        ++waiting_;
         cv_.wait(lock, [this] { return closing_ || !queue_.empty(); });
+        --waiting_;
         if (closing_) return;
         job = std::move(queue_.front());
         queue_.pop_front();
@@ -762,6 +773,7 @@ class BlockWorkers {
   std::mutex m_;
   std::condition_variable cv_;
   std::deque<Job> queue_;
+  int waiting_ = 0;
   bool closing_ = false;
   std::vector<std::thread> threads_;
 };
@@ -771,12 +783,14 @@ class BlockWorkers {
 // rest of the file, so that every sample is checked and the clipping reports are complete.
 // A recording of one block is detected on this thread, its stages split among
 // DetectOptions::threads; several blocks are detected concurrently on that many BlockWorkers
-// (each block single-threaded), while this thread reads ahead: at most threads + 1 blocks in
-// memory. The
-// cuts depend only on the audio, and the merge is in order, so the result is the serial one.
-// (Splitting the stages of the recording's last blocks among the threads too, when no full
-// block follows, was slower on the 2-core machine: 0.79-1.06 s against 0.69-0.76 s for a
-// 10-minute file, bench_long's file, idle.)
+// (each block single-threaded), while this thread reads ahead. One block more than the workers
+// is handed out, so that a worker that finishes finds the next block queued instead of waiting
+// for this thread to merge the oldest and read: at most threads + 2 blocks in memory (10
+// minutes, two threads, 15 alternating runs: 630 -> 614 ms median). The last blocks' stages
+// take the workers left idle (DetectOptions::available_threads; 681 -> 630 ms). The cuts depend
+// only on the audio, and the merge is in order, so the result is the serial one. (Giving the
+// last blocks' stages all the threads from their start, whether or not a worker was idle, was
+// slower on the 2-core machine: 0.79-1.06 s against 0.69-0.76 s for a 10-minute file.)
 void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
                   const std::vector<int>& choices, const DetectOptions& options,
                   std::vector<SignalAcrossBlocks>* signals) {
@@ -786,8 +800,17 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   const std::int64_t margin = static_cast<std::int64_t>(kBlockMarginS * rate);
   const std::int64_t search = std::min(cap / 4, static_cast<std::int64_t>(kMaxCutSearchS * rate));
   const int threads = ResolveThreads(options.threads);
+  // A block's stages run on its worker alone while blocks are still to come; once the last
+  // block is handed out, each stage that starts also takes the workers left without a block
+  // (StageThreads): the recording's last blocks, which would otherwise finish on one core each
+  // while the others wait, end sooner. The values do not depend on it.
+  std::unique_ptr<BlockWorkers> workers;
+  std::atomic<bool> all_handed_out{false};
   DetectOptions per_block = options;
-  per_block.threads = 1;
+  per_block.threads = threads;
+  per_block.available_threads = [&workers, &all_handed_out] {
+    return 1 + (all_handed_out.load() ? workers->Idle() : 0);
+  };
 
   struct InFlight {
     double own_lo_s, own_hi_s;
@@ -795,7 +818,6 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     std::future<BlockResult> result;
   };
   std::deque<InFlight> in_flight;
-  std::unique_ptr<BlockWorkers> workers;
   auto merge_oldest = [&] {
     InFlight& f = in_flight.front();
     MergeBlockResult(f.result.get(), f.own_lo_s, f.own_hi_s, f.last, signals);
@@ -857,7 +879,8 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
           return DetectBlock(blk, rate, choices, per_block, first_here);
         });
       in_flight.push_back({lo_s, hi_s, last, workers->Submit(std::move(b))});
-      while (static_cast<int>(in_flight.size()) >= threads) merge_oldest();
+      if (last) all_handed_out = true;
+      while (static_cast<int>(in_flight.size()) > threads) merge_oldest();
     } else {
       MergeBlockResult(DetectBlock(b, rate, choices, per_block, here), lo_s, hi_s, last, signals);
     }

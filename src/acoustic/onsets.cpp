@@ -20,6 +20,7 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "power_spectra.hpp"
 
 namespace bouncecal {
 namespace {
@@ -475,6 +476,8 @@ struct OnsetDetector::Fft {
   fftw_complex* out = nullptr;
   fftw_plan plan = nullptr;
   std::vector<double> window;
+  // The novelty's transforms four frames at a time where the size allows (power_spectra.hpp).
+  std::unique_ptr<PowerSpectra4> four;
   explicit Fft(int size) : n(size) {
     std::lock_guard<std::mutex> lock(PlannerMutex());
     in = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
@@ -485,6 +488,7 @@ struct OnsetDetector::Fft {
     for (int i = 0; i < n; ++i)  // periodic Hann
       window[static_cast<std::size_t>(i)] =
           0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * i / static_cast<double>(n));
+    if (PowerSpectra4::Supports(n)) four = std::make_unique<PowerSpectra4>(n, window);
   }
   ~Fft() {
     std::lock_guard<std::mutex> lock(PlannerMutex());
@@ -573,6 +577,10 @@ OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
 
 OnsetDetector::~OnsetDetector() = default;
 
+int OnsetDetector::Threads() const {
+  return StageThreads(options_.threads, options_.available_threads);
+}
+
 int OnsetDetector::HopSamples(const OnsetOptions& options, double rate_hz) {
   const double hop_target = options.hop_s > 0.0 ? options.hop_s * rate_hz : 0.00033 * rate_hz;
   return std::max(1, NearestPowerOfTwo(hop_target));
@@ -611,7 +619,7 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   res.window_samples = window_;
   res.rate_hz = rate_hz_;
   res.sigma_floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
-  res.whitened = Whiten(x, options_.lpc_order, ResolveThreads(options_.threads));
+  res.whitened = Whiten(x, options_.lpc_order, Threads());
   res.noise_rms = RobustRms(res.whitened);
   const std::size_t n = res.whitened.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
@@ -733,7 +741,7 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   den.Allocate(frames);
   const Fft& f = *fft_;
   const double inv_ref = 1.0 / static_cast<double>(kRefFrames);
-  const int threads = ResolveThreads(options_.threads);
+  const int threads = Threads();
   const std::size_t chunk = SpectraChunkFrames(bins);
   const std::size_t chunks = (frames + chunk - 1) / chunk;
   // Each thread takes the next chunk until none is left, with its own arrays for them.
@@ -748,10 +756,23 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
         for (std::size_t ch = next_chunk++; ch < chunks; ch = next_chunk++) {
           const std::size_t c0 = ch * chunk, c1 = std::min(frames, c0 + chunk);
           const std::size_t p0 = c0 >= warm ? c0 - warm : 0;  // first power row of this chunk
-          for (std::size_t t = p0; t < c1; ++t) {
+          for (std::size_t t = p0; t < c1;) {
+            if (f.four) {  // four frames a time; the last ones repeated to fill the lanes
+              const float* src[4];
+              double* out[4];
+              for (std::size_t j = 0; j < 4; ++j) {
+                const std::size_t tj = std::min(t + j, c1 - 1);
+                src[j] = w.data() + tj * hop;
+                out[j] = tj == t + j ? power.data.get() + (tj - p0) * bins : scratch.data.get();
+              }
+              f.four->Compute(src, out);
+              t += 4;
+              continue;
+            }
             Windowed(w.data() + t * hop, f.window.data(), nw, a.real);
             fftw_execute_dft_r2c(f.plan, a.real, a.spec);
             PowerSpectrum(a.spec, bins, power.data.get() + (t - p0) * bins);
+            ++t;
           }
           auto row = [&](std::size_t frame) { return power.data.get() + (frame - p0) * bins; };
           // The reference at the chunk's first frame: its frames summed in frame order (as sliding
@@ -930,12 +951,11 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
   const std::size_t nblk = (frames + blk - 1) / blk;
   std::vector<double> blk_thr(nblk);
   // Each block's median and MAD are independent: groups of kThresholdPart blocks per thread task.
-  ParallelForGroups(ResolveThreads(options_.threads), nblk, kThresholdPart,
-                    [&](std::size_t b0, std::size_t b1) {
-                      SlidingSample window;
-                      for (std::size_t b = b0; b < b1; ++b)
-                        blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
-                    });
+  ParallelForGroups(Threads(), nblk, kThresholdPart, [&](std::size_t b0, std::size_t b1) {
+    SlidingSample window;
+    for (std::size_t b = b0; b < b1; ++b)
+      blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
+  });
   std::vector<double> thr;
   ReserveHugePages(&thr, frames);
   for (std::size_t t = 0; t < frames; ++t) {
@@ -1395,8 +1415,7 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
   if (res->onsets.empty()) return;
   TemplateMatch m;
   if (!BuildTemplate(res, &m)) return;
-  NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh,
-                   ResolveThreads(options_.threads));
+  NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh, Threads());
   auto live = [&](long l) { return chunks.Ncc(static_cast<std::size_t>(l)); };
   const long n = m.n;
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;

@@ -770,7 +770,7 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   // 2. Local whitening around each member.
   // Stages 2, 3 and 5-6 treat each member on its own (every member writes its own slots), so
   // the members are shared among TimingOptions::threads.
-  const int threads = ResolveThreads(o.threads);
+  const int threads = StageThreads(o.threads, o.available_threads);
   std::vector<Neighbourhood> nb(n);
   ParallelFor(threads, n, [&](std::size_t k) {
     nb[k].begin = anchors[k] - g.before;

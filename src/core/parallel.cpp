@@ -15,6 +15,12 @@ int ResolveThreads(int requested) {
   return std::clamp(static_cast<int>(n), 1, kMaxAutoThreads);
 }
 
+int StageThreads(int requested, const std::function<int()>& available) {
+  const int threads = ResolveThreads(requested);
+  if (threads <= 1 || !available) return threads;
+  return std::clamp(available(), 1, threads);
+}
+
 void ParallelFor(int threads, std::size_t n, const std::function<void(std::size_t)>& task) {
   const std::size_t workers =
       std::min<std::size_t>(n, static_cast<std::size_t>(std::max(1, threads)));

@@ -18,6 +18,7 @@
 // message says why: no candidates, intervals that do not shrink, members removed...).
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,14 +76,20 @@ struct DetectOptions {
   double max_block_s = 120.0;
   // Threads detection may use, the calling one included (0: the machine's hardware
   // concurrency, at most kMaxAutoThreads, core/parallel.hpp). The blocks of a long recording are
-  // detected concurrently (the reader stays at most one block ahead of them: at most threads + 1
-  // blocks in memory), a single block's independent stages split among the threads. The result
+  // detected concurrently (one more block queued, and the reader reading the next: at most
+  // threads + 2 blocks in memory), each on one thread until the last block is handed out, then
+  // with the threads left idle (available_threads); a single block's independent stages split
+  // among the threads. The result
   // is the same, to the bit, whatever the count. Default 1: on the 2-core machine two threads
   // cost 5-15 % more CPU time and gain no wall time when the other core is busy; nearly idle,
   // they cut a 10-minute recording's wall time from ~1.1 s to ~0.7 s (README, "Long
   // recordings"). Callers that run several detections at once (a batch on --jobs workers)
   // need 1.
   int threads = 1;
+  // When set, each stage of a signal's detection uses at most this many of the threads (asked
+  // as it starts, core/parallel.hpp StageThreads): DetectBlocks gives the stages of the
+  // recording's last blocks the workers that have no block left. Not part of the result.
+  std::function<int()> available_threads;
   bool IsValid(std::string* error) const;
 };
 

@@ -58,6 +58,9 @@ struct OnsetOptions {
   // Threads Detect may use (0: hardware concurrency, core/parallel.hpp); the onsets do not depend
   // on the count. One OnsetDetector may serve several threads' Detect calls at once.
   int threads = 1;
+  // When set, each stage uses at most this many of them (asked as it starts,
+  // core/parallel.hpp StageThreads). Not part of the result.
+  std::function<int()> available_threads;
   bool IsValid(std::string* error) const;
 };
 
@@ -159,6 +162,8 @@ class OnsetDetector {
   static std::size_t WorkingBytes(const OnsetOptions& options, double rate_hz, std::size_t samples);
 
  private:
+  // The threads the stage starting now may use (OnsetOptions::threads, available_threads).
+  int Threads() const;
   // The stages of Detect, in order.
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
   std::vector<double> Novelty(const std::vector<float>& whitened) const;    // 1. flux, dB

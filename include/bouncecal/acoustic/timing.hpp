@@ -75,6 +75,7 @@
 // not include that constant.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -111,6 +112,9 @@ struct TimingOptions {
   // Threads TimeSequence may use (0: hardware concurrency, core/parallel.hpp): its members are
   // timed independently; the result does not depend on the count.
   int threads = 1;
+  // When set, at most this many of them (asked as each pass starts, core/parallel.hpp
+  // StageThreads). Not part of the result.
+  std::function<int()> available_threads;
   bool IsValid(std::string* error) const;
 };
 

@@ -20,6 +20,12 @@ constexpr int kMaxAutoThreads = 8;
 // kMaxAutoThreads.
 int ResolveThreads(int requested);
 
+// The threads a stage may use when it starts: ResolveThreads(requested), and at most
+// available() (at least 1) when that is set. A caller that runs several such stages at once
+// gives each, through it, the cores the others leave idle; what the stages compute does not
+// depend on the count.
+int StageThreads(int requested, const std::function<int()>& available);
+
 // Runs task(i) for every i in [0, n) on up to `threads` threads (the calling one included) and
 // returns when all have finished. If tasks throw, the exception of the lowest such i is
 // rethrown.

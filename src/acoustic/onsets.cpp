@@ -1,4 +1,4 @@
-// Onset detection: whitening, relative spectral flux on an FFTW STFT, adaptive threshold, peak
+// Onset detection: whitening, relative spectral flux on a short-hop STFT, adaptive threshold, peak
 // picking, AIC sub-sample refinement. See include/bouncecal/acoustic/onsets.hpp.
 #include "bouncecal/acoustic/onsets.hpp"
 

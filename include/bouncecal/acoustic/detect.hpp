@@ -1,7 +1,7 @@
 // bouncecal/acoustic/detect.hpp — recording -> impacts -> bounce sequences (the acoustic half).
 //
 // The pipeline, per candidate signal (a channel or the mix): onset detection (onsets.hpp:
-// whitening, spectral novelty on an FFTW STFT, adaptive threshold, template search) ->
+// whitening, spectral novelty on a short-hop STFT, adaptive threshold, template search) ->
 // bounce-sequence tracking (sequence.hpp) -> guided search where the tracker expects impacts ->
 // local timing with per-impact sigma (timing.hpp) -> physical plausibility (plausibility.hpp)
 // -> re-timing of the sequences that lost members. With ChannelSelection auto and several

@@ -804,12 +804,15 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   // block is handed out, each stage that starts also takes the workers left without a block
   // (StageThreads): the recording's last blocks, which would otherwise finish on one core each
   // while the others wait, end sooner. The values do not depend on it.
-  std::unique_ptr<BlockWorkers> workers;
+  // `pool` is the workers' (set before the first block is handed out, read only after the last
+  // one is); the workers themselves are declared after per_block, so that an error that ends
+  // the reading joins their threads while the options they use still exist.
   std::atomic<bool> all_handed_out{false};
+  BlockWorkers* pool = nullptr;
   DetectOptions per_block = options;
   per_block.threads = threads;
-  per_block.available_threads = [&workers, &all_handed_out] {
-    return 1 + (all_handed_out.load() ? workers->Idle() : 0);
+  per_block.available_threads = [&pool, &all_handed_out] {
+    return 1 + (all_handed_out.load() ? pool->Idle() : 0);
   };
 
   struct InFlight {
@@ -818,6 +821,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     std::future<BlockResult> result;
   };
   std::deque<InFlight> in_flight;
+  std::unique_ptr<BlockWorkers> workers;
   auto merge_oldest = [&] {
     InFlight& f = in_flight.front();
     MergeBlockResult(f.result.get(), f.own_lo_s, f.own_hi_s, f.last, signals);
@@ -874,10 +878,12 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
     const bool last = b.last;
     if (threads > 1) {
-      if (!workers)
+      if (!workers) {
         workers = std::make_unique<BlockWorkers>(threads, [&](const Block& blk, bool first_here) {
           return DetectBlock(blk, rate, choices, per_block, first_here);
         });
+        pool = workers.get();
+      }
       in_flight.push_back({lo_s, hi_s, last, workers->Submit(std::move(b))});
       if (last) all_handed_out = true;
       while (static_cast<int>(in_flight.size()) > threads) merge_oldest();

@@ -18,15 +18,13 @@ typedef float Float4 __attribute__((vector_size(16)));
 typedef int Int4 __attribute__((vector_size(16)));
 typedef long long Long4 __attribute__((vector_size(32)));
 
+// Lanes i, j, k, l of the concatenation of a and b (Clang's and GCC's spellings).
 #if defined(__clang__)
-#define BOUNCECAL_SHUFFLE4(a, b, i, j, k, l) __builtin_shufflevector(a, b, i, j, k, l)
+#define BOUNCECAL_SHUFFLE4_F(a, b, i, j, k, l) __builtin_shufflevector(a, b, i, j, k, l)
+#define BOUNCECAL_SHUFFLE4_D(a, b, i, j, k, l) __builtin_shufflevector(a, b, i, j, k, l)
 #else
 #define BOUNCECAL_SHUFFLE4_F(a, b, i, j, k, l) __builtin_shuffle(a, b, Int4{i, j, k, l})
 #define BOUNCECAL_SHUFFLE4_D(a, b, i, j, k, l) __builtin_shuffle(a, b, Long4{i, j, k, l})
-#endif
-#if defined(__clang__)
-#define BOUNCECAL_SHUFFLE4_F BOUNCECAL_SHUFFLE4
-#define BOUNCECAL_SHUFFLE4_D BOUNCECAL_SHUFFLE4
 #endif
 
 // Rows r[j] (4 values of frame j) to columns c[q] (value q of the 4 frames), by shuffles.

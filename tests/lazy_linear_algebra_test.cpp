@@ -140,4 +140,27 @@ TEST(LazyLinearAlgebra, ProgramCalibratesWithoutLoadingThem) {
   EXPECT_EQ(r.err.find("blas"), std::string::npos);
 }
 
+// libcrypto (SHA-256 of the inputs, src/io/provenance.cpp) is opened by the first checksum, not
+// linked: a detection never loads it; a calibration, whose result names its inputs' checksums,
+// loads it and gets the checksum of the recording.
+TEST(LazyLibcrypto, OnlyTheCommandsThatChecksumLoadIt) {
+  const std::string root = BOUNCECAL_SOURCE_DIR;
+  const std::string rec = root + "/data/default_steel_copper.flac";
+  const auto detect = bouncecal::testing_util::RunCommand(
+      std::string("LD_DEBUG=files ") + BOUNCECAL_BINARY, "detect " + rec + " --json");
+  ASSERT_EQ(detect.exit_code, 0) << detect.err;
+  EXPECT_NE(detect.err.find("file=libsndfile"), std::string::npos) << "LD_DEBUG output missing";
+  EXPECT_EQ(detect.err.find("file=libcrypto"), std::string::npos);
+  const auto calibrate = bouncecal::testing_util::RunCommand(
+      std::string("LD_DEBUG=files ") + BOUNCECAL_BINARY,
+      "calibrate " + rec + " --scene " + root + "/data/default_steel_copper.toml --json --quiet");
+  ASSERT_EQ(calibrate.exit_code, 0) << calibrate.err;
+  EXPECT_NE(calibrate.err.find("file=libcrypto"), std::string::npos);
+  // The provenance names the recording's checksum, as sha256sum (coreutils) computes it.
+  const auto sum = bouncecal::testing_util::RunCommand("sha256sum", rec);
+  ASSERT_EQ(sum.exit_code, 0) << sum.err;
+  const std::string digest = sum.out.substr(0, 64);
+  EXPECT_NE(calibrate.out.find("\"" + digest + "\""), std::string::npos) << digest;
+}
+
 }  // namespace

@@ -3,12 +3,15 @@
 #include "bouncecal/core/parallel.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace bouncecal {
@@ -34,6 +37,91 @@ TEST(ParallelFor, TheLowestFailingTasksExceptionReachesTheCaller) {
       ADD_FAILURE() << threads << " threads: no exception";
     } catch (const std::runtime_error& e) {
       EXPECT_EQ(std::string(e.what()), "task 7") << threads << " threads";
+    }
+  }
+}
+
+// A pool's threads serve call after call: every task once, on the pool's threads (at most
+// min(threads, pool size) distinct ones, the caller among them), whether the workers were
+// spinning (calls back to back) or asleep (a pause longer than WorkerPool::kSpinMicroseconds).
+TEST(WorkerPool, CallAfterCallEveryTaskRunsOnceOnThePoolsThreads) {
+  for (const int pool_threads : {1, 2, 3}) {
+    WorkerPool pool(pool_threads);
+    ASSERT_EQ(pool.threads(), pool_threads);
+    std::vector<pid_t> seen;  // the threads of every call (kernel ids: not reused soon)
+    for (int call = 0; call < 300; ++call) {
+      if (call % 100 == 99)
+        std::this_thread::sleep_for(std::chrono::microseconds(3 * WorkerPool::kSpinMicroseconds));
+      const int threads = 1 + call % 4;
+      const std::size_t n = static_cast<std::size_t>(call % 37);
+      std::vector<std::atomic<int>> runs(n);
+      std::vector<pid_t> who(n);
+      ParallelFor(
+          threads, n,
+          [&](std::size_t i) {
+            ++runs[i];
+            who[i] = gettid();
+          },
+          &pool);
+      for (std::size_t i = 0; i < n; ++i)
+        ASSERT_EQ(runs[i].load(), 1) << "call " << call << ", task " << i;
+      std::sort(who.begin(), who.end());
+      who.erase(std::unique(who.begin(), who.end()), who.end());
+      EXPECT_LE(who.size(), static_cast<std::size_t>(std::min(threads, pool_threads)))
+          << "call " << call;
+      seen.insert(seen.end(), who.begin(), who.end());
+    }
+    std::sort(seen.begin(), seen.end());
+    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
+    EXPECT_LE(seen.size(), static_cast<std::size_t>(pool_threads));  // no thread started per call
+    EXPECT_NE(std::find(seen.begin(), seen.end(), gettid()), seen.end());
+  }
+}
+
+// A call made while the pool runs another (from one of its tasks, or from another thread) runs
+// on threads of its own: nothing waits for the pool, every task runs once.
+TEST(WorkerPool, CallsWhileItIsBusyRunOnTheirOwnThreads) {
+  WorkerPool pool(2);
+  std::vector<std::atomic<int>> inner(8 * 16);
+  ParallelFor(
+      2, 8,
+      [&](std::size_t i) {
+        ParallelFor(
+            2, 16, [&](std::size_t j) { ++inner[i * 16 + j]; }, &pool);
+      },
+      &pool);
+  for (std::size_t k = 0; k < inner.size(); ++k) EXPECT_EQ(inner[k].load(), 1) << k;
+  // Two threads calling at once, many times.
+  std::vector<std::atomic<long>> sums(2);
+  auto caller = [&](int c) {
+    for (int call = 0; call < 200; ++call)
+      ParallelFor(
+          2, 50, [&](std::size_t i) { sums[c] += static_cast<long>(i); }, &pool);
+  };
+  std::thread other(caller, 1);
+  caller(0);
+  other.join();
+  EXPECT_EQ(sums[0].load(), 200L * 1225L);
+  EXPECT_EQ(sums[1].load(), 200L * 1225L);
+  // TryRun itself says so: busy while its body runs.
+  bool nested = true;
+  EXPECT_TRUE(pool.TryRun(2, [&] { nested = pool.TryRun(2, [] {}); }));
+  EXPECT_FALSE(nested);
+}
+
+TEST(WorkerPool, TheLowestFailingTasksExceptionReachesTheCaller) {
+  WorkerPool pool(3);
+  for (int round = 0; round < 3; ++round) {  // and the pool serves the next call
+    try {
+      ParallelFor(
+          3, 40,
+          [](std::size_t i) {
+            if (i == 7 || i == 31) throw std::runtime_error("task " + std::to_string(i));
+          },
+          &pool);
+      ADD_FAILURE() << "no exception";
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()), "task 7");
     }
   }
 }

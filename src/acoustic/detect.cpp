@@ -251,17 +251,23 @@ void CapWarnings(std::size_t candidates, std::size_t sequences, double from_s, d
 
 // Stage list for one signal: onsets -> tracking -> guided search -> timing -> plausibility ->
 // re-timing. (The clipped flags are set once the whole recording was read: MarkClipped.)
-SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double offset_s,
-                               const DetectOptions& options) {
-  SignalDetection out;
-  const double duration_s = static_cast<double>(x.size()) / rate_hz;
+// The onset detector's options in a detection with `options`.
+OnsetOptions OnsetOptionsOf(const DetectOptions& options) {
   OnsetOptions oo;
   oo.hop_s = options.hop_s;
   oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
   oo.lpc_order = options.lpc_order;
   oo.threads = options.threads;
   oo.available_threads = options.available_threads;
-  const OnsetDetector detector(oo, rate_hz);
+  oo.pool = options.pool;
+  return oo;
+}
+
+SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double offset_s,
+                               const DetectOptions& options) {
+  SignalDetection out;
+  const double duration_s = static_cast<double>(x.size()) / rate_hz;
+  const OnsetDetector detector(OnsetOptionsOf(options), rate_hz);
   const OnsetResult onsets = detector.Detect(x);
   out.hop_samples = detector.hop_samples();
   out.candidates = onsets.onsets;
@@ -281,6 +287,7 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   TimingOptions tim;
   tim.lpc_order = options.lpc_order;
   tim.available_threads = options.available_threads;
+  tim.pool = options.pool;
   // Every timing round starts from the detector's own times (the anchors), not from the previous
   // round's output: a round that began there would move the AIC windows and the lag searches by
   // the previous round's result, and a member whose own AIC pick pointed a ringing cycle away
@@ -312,10 +319,13 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
     std::vector<Sequence> timed(which.size());
     for (std::size_t i = 0; i < which.size(); ++i) anchors[i] = anchors_of(*which[i]);
     const int inner = which.size() == 1 ? threads : 1;
-    ParallelFor(threads, which.size(), [&](std::size_t i) {
-      timed[i] = *which[i];
-      time_at(anchors[i], inner, &timed[i]);
-    });
+    ParallelFor(
+        threads, which.size(),
+        [&](std::size_t i) {
+          timed[i] = *which[i];
+          time_at(anchors[i], inner, &timed[i]);
+        },
+        options.pool);
     for (std::size_t i = 0; i < which.size(); ++i) {
       std::vector<double> now = anchors_of(*which[i]);
       if (now != anchors[i]) {
@@ -637,25 +647,27 @@ double MaxAbs(const float* x, std::size_t n) {
   return static_cast<double>(std::max(0.0f, std::max(-lo, hi)));  // +0 for an all-zero block
 }
 
+// The bytes of the arrays of one signal's detection in a block of n frames (the signals are
+// detected one after another and share them): the mix, the decimated signal, the detector's
+// working set.
+std::size_t BlockArrayBytes(std::size_t n, double rate, const std::vector<int>& choices,
+                            const DetectOptions& options) {
+  const int factor = DecimationFactor(rate);
+  const std::size_t analysed = n / static_cast<std::size_t>(factor) + 1;
+  const bool mixes = std::any_of(choices.begin(), choices.end(), [](int c) { return c < 0; });
+  return (mixes ? n * sizeof(float) : 0) + (factor > 1 ? analysed * sizeof(float) : 0) +
+         OnsetDetector::WorkingBytes(OnsetOptionsOf(options), rate / factor, analysed);
+}
+
 // Every candidate signal of one block through DetectInSignal (at most at kMaxAnalysisRateHz).
-// `prefault`: map the memory of its arrays first (below).
+// `prefault`: map the memory of its arrays first, on this thread's heap, in huge pages
+// (BlockArrayBytes, core/huge_pages.hpp).
 BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& choices,
                         const DetectOptions& options, bool prefault) {
   BlockResult r;
   const int factor = DecimationFactor(rate);
   const double offset_s = static_cast<double>(b.start) / rate;
-  // The arrays of one signal's detection (the signals are detected one after another and share
-  // them): the mix, the decimated signal, the detector's working set; on this thread's heap, in
-  // huge pages mapped at once (core/huge_pages.hpp).
-  if (prefault) {
-    const std::size_t n = b.channels.front().size();
-    const std::size_t analysed = n / static_cast<std::size_t>(factor) + 1;
-    const bool mixes = std::any_of(choices.begin(), choices.end(), [](int c) { return c < 0; });
-    OnsetOptions oo;
-    oo.hop_s = options.hop_s;
-    PrefaultHeap((mixes ? n * sizeof(float) : 0) + (factor > 1 ? analysed * sizeof(float) : 0) +
-                 OnsetDetector::WorkingBytes(oo, rate / factor, analysed));
-  }
+  if (prefault) PrefaultHeap(BlockArrayBytes(b.channels.front().size(), rate, choices, options));
   std::vector<float> mix, xd;
   for (int choice : choices) {
     // A channel is detected on the block's own samples; the mix is made one signal at a time.
@@ -833,10 +845,33 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   // it serves the next block. Where they are detected concurrently (BlockWorkers), each worker
   // maps its arrays at its first block; mapping the samples of the blocks read ahead too changed
   // nothing measurable (10 minutes, two threads: 0.596-0.602 s with 0 to 4 blocks mapped).
+  //
+  // A recording of one block detected with several threads has that memory (its samples' and
+  // its arrays') mapped on another thread while this one reads it, and the detector's FFTW plans
+  // made there too: FFTW keeps a plan's solution, so that the detector this thread constructs
+  // after the reading plans again in microseconds (~3 ms of planning for a first detector).
   const std::size_t channels = static_cast<std::size_t>(reader->info().channels);
-  const bool here = i1 - i0 <= cap || threads == 1;
-  if (here)
-    PrefaultHeap(static_cast<std::size_t>(std::min(cap, i1 - i0)) * channels * sizeof(float));
+  const bool one_block = i1 - i0 <= cap;
+  const bool here = one_block || threads == 1;
+  const std::size_t block_bytes =
+      static_cast<std::size_t>(std::min(cap, i1 - i0)) * channels * sizeof(float);
+  std::optional<HeapPrefault> ahead;
+  if (one_block && threads > 1) {
+    OnsetOptions oo = OnsetOptionsOf(options);
+    oo.available_threads = nullptr;
+    oo.pool = nullptr;
+    const double analysis_rate = rate / DecimationFactor(rate);
+    ahead.emplace(block_bytes,
+                  BlockArrayBytes(static_cast<std::size_t>(i1 - i0), rate, choices, options),
+                  [oo, analysis_rate] {
+                    try {
+                      const OnsetDetector plans(oo, analysis_rate);
+                    } catch (...) {  // the detection itself reports what is wrong
+                    }
+                  });
+  } else if (here) {
+    PrefaultHeap(block_bytes);
+  }
   std::vector<std::vector<float>> buf(channels);
   std::int64_t buf_start = i0;
   double own_lo_s = -std::numeric_limits<double>::infinity();
@@ -871,7 +906,14 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     buf_start = next;
     own_lo_s = b.own_hi_s;
     if (first && b.last) {  // one block: on this thread, with all the threads for its stages
-      MergeBlockResult(DetectBlock(b, rate, choices, options, true), b.own_lo_s, b.own_hi_s, true,
+      // The stages' threads kept running from one stage to the next (WorkerPool).
+      DetectOptions stages = options;
+      std::optional<WorkerPool> stage_pool;
+      if (threads > 1 && stages.pool == nullptr) {
+        stage_pool.emplace(threads);
+        stages.pool = &*stage_pool;
+      }
+      MergeBlockResult(DetectBlock(b, rate, choices, stages, !ahead), b.own_lo_s, b.own_hi_s, true,
                        signals);
       break;
     }

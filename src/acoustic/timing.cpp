@@ -771,8 +771,11 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   // Stages 2, 3 and 5-6 treat each member on its own (every member writes its own slots), so
   // the members are shared among TimingOptions::threads.
   const int threads = StageThreads(o.threads, o.available_threads);
+  auto each = [&](std::size_t count, const std::function<void(std::size_t)>& task) {
+    ParallelFor(threads, count, task, o.pool);
+  };
   std::vector<Neighbourhood> nb(n);
-  ParallelFor(threads, n, [&](std::size_t k) {
+  each(n, [&](std::size_t k) {
     nb[k].begin = anchors[k] - g.before;
     nb[k].w = WhitenSegment(x, res.predictor, anchors[k] - g.before, anchors[k] + g.after);
   });
@@ -782,7 +785,7 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   // sequence has (a different template moved every time of a rubber ball by 55 us); the earliest
   // within the tolerance stays the same member unless the SNRs move by that much.
   std::vector<double> snr(n);
-  ParallelFor(threads, n, [&](std::size_t k) {
+  each(n, [&](std::size_t k) {
     snr[k] = Measure(nb[k], x, static_cast<double>(anchors[k]) - 0.5, rate_hz, o).snr_db;
   });
   double best_snr = -1e300;
@@ -796,7 +799,7 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   const double resolution = std::hypot(o.resolution_samples, o.resolution_s * rate_hz);
   std::vector<double> own_aic(n, NAN), own_spread(n, 0.0);
   std::vector<MemberTime> mts(n);
-  ParallelFor(threads, n, [&](std::size_t k) {
+  each(n, [&](std::size_t k) {
     TimingDetail& d = res.detail[k];
     const AicPick own = AicAround(nb[k], anchors[k], g);
     if (own.valid) {
@@ -839,7 +842,7 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
       NeighbourhoodPredictor(x, loud_anchors, o.lpc_order, std::lround(o.fit_before_s * rate_hz),
                              std::lround(o.fit_after_s * rate_hz));
   std::vector<std::optional<double>> loud_shift(by_level.size());
-  ParallelFor(threads, by_level.size(), [&](std::size_t i) {
+  each(by_level.size(), [&](std::size_t i) {
     const std::size_t k = by_level[i].second;
     Neighbourhood loud;
     loud.begin = nb[k].begin;

@@ -28,6 +28,8 @@
 
 namespace bouncecal {
 
+class WorkerPool;  // core/parallel.hpp
+
 struct Impact {
   double time_s = 0.0;     // refined onset (first arriving sound), s from file start
   double sigma_s = 0.0;    // 1-sigma timing uncertainty, s
@@ -90,6 +92,10 @@ struct DetectOptions {
   // as it starts, core/parallel.hpp StageThreads): DetectBlocks gives the stages of the
   // recording's last blocks the workers that have no block left. Not part of the result.
   std::function<int()> available_threads;
+  // When set, the threads are this pool's (core/parallel.hpp WorkerPool: kept running between
+  // the stages) while it is free; a recording of one block detected with several threads
+  // without one gets a pool of its own. Not part of the result.
+  WorkerPool* pool = nullptr;
   bool IsValid(std::string* error) const;
 };
 

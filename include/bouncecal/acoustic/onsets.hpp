@@ -62,6 +62,9 @@ struct OnsetOptions {
   // When set, each stage uses at most this many of them (asked as it starts,
   // core/parallel.hpp StageThreads). Not part of the result.
   std::function<int()> available_threads;
+  // When set, the threads are this pool's (core/parallel.hpp WorkerPool: kept running between
+  // the stages) while it is free. Not part of the result.
+  WorkerPool* pool = nullptr;
   bool IsValid(std::string* error) const;
 };
 
@@ -100,7 +103,8 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 // does not depend on where x starts beyond the audio cut off) and returns the prediction error
 // (same length; the first `order` samples use the available past). `threads` share the work;
 // the result does not depend on their number.
-std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1);
+std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1,
+                          WorkerPool* pool = nullptr);
 
 // Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
 // hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).

@@ -157,6 +157,8 @@ constexpr std::size_t kCorrelatePart = 16;
 // of 4: RunningEnergy4).
 constexpr std::size_t kEnergyRestart = 8192;
 constexpr std::size_t kEnergyPart = 4;
+// Flux peaks refined (AIC picks) per task.
+constexpr std::size_t kRefinePart = 16;
 // Threshold blocks (their medians) per task.
 constexpr std::size_t kThresholdPart = 256;
 
@@ -692,14 +694,24 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
       std::max<std::size_t>(nw, static_cast<std::size_t>(options_.aic_pre_s * rate_hz_));
   const std::size_t post =
       std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
+  // Each peak's refinement reads only the signal and `res`'s whitened signal and noise: the
+  // peaks are refined on the threads, each into its own slot.
   std::vector<long> window_lo, window_hi;  // onset samples the AIC window of each onset spans
+  std::vector<std::size_t> centre;
   for (std::size_t t : peaks) {
     // The click is most likely in the newest half of the window at the flux peak.
-    const std::size_t centre = t * hop + nw / 2 + nw / 4;
-    res.onsets.push_back(Refine(x, res, centre, false));
-    window_lo.push_back(static_cast<long>(centre) - static_cast<long>(pre));
-    window_hi.push_back(static_cast<long>(centre + post));
+    centre.push_back(t * hop + nw / 2 + nw / 4);
+    window_lo.push_back(static_cast<long>(centre.back()) - static_cast<long>(pre));
+    window_hi.push_back(static_cast<long>(centre.back() + post));
   }
+  std::vector<Impact> refined(peaks.size());
+  ParallelForGroups(
+      Threads(), peaks.size(), kRefinePart,
+      [&](std::size_t i0, std::size_t i1) {
+        for (std::size_t i = i0; i < i1; ++i) refined[i] = Refine(x, res, centre[i], false);
+      },
+      options_.pool);
+  res.onsets = std::move(refined);
   // 5. Template pass.
   TemplatePass(x, window_lo, window_hi, &res);
   return res;

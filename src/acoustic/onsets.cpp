@@ -160,7 +160,7 @@ constexpr std::size_t kEnergyPart = 4;
 // Flux peaks refined (AIC picks) per task.
 constexpr std::size_t kRefinePart = 16;
 // Threshold blocks (their medians) per task.
-constexpr std::size_t kThresholdPart = 256;
+constexpr std::size_t kThresholdPart = 64;
 
 // Frames averaged into the novelty's reference spectrum (~3 ms at the default hop).
 constexpr std::size_t kRefFrames = 8;
@@ -1036,15 +1036,21 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
       options_.pool);
   std::vector<double> thr;
   ReserveHugePages(&thr, frames);
-  for (std::size_t t = 0; t < frames; ++t) {
-    const double pos =
-        (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
-    const double cl = std::clamp(pos, 0.0, static_cast<double>(nblk - 1));
-    const std::size_t b0 = static_cast<std::size_t>(cl);
-    const std::size_t b1 = std::min(nblk - 1, b0 + 1);
-    const double fr = cl - static_cast<double>(b0);
-    thr.push_back(blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr);
-  }
+  thr.resize(frames);
+  ParallelForGroups(
+      Threads(), frames, kSpectraChunk,
+      [&](std::size_t t0, std::size_t t1) {
+        for (std::size_t t = t0; t < t1; ++t) {
+          const double pos = (static_cast<double>(t) - static_cast<double>(blk) / 2.0) /
+                             static_cast<double>(blk);
+          const double cl = std::clamp(pos, 0.0, static_cast<double>(nblk - 1));
+          const std::size_t b0 = static_cast<std::size_t>(cl);
+          const std::size_t b1 = std::min(nblk - 1, b0 + 1);
+          const double fr = cl - static_cast<double>(b0);
+          thr[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+        }
+      },
+      options_.pool);
   return thr;
 }
 

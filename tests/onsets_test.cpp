@@ -255,14 +255,14 @@ TEST(Onsets, SubSampleTimingOfRenderedClicks) {
 }
 
 TEST(Onsets, TemplateMatchAcrossTheNccChunks) {
-  // The template's NCC is computed in chunks of 262144 starts (5.46 s at 48 kHz, onsets.cpp
-  // kNccChunk). 50 clicks over 10.6 s, click 25 a few samples after the first chunk boundary
-  // (0.3 + 25 x 0.206453 s = 5.4613 s, plus 25 x 0.37 samples): every click is found, matched
-  // and timed as well as within one chunk (SubSampleTimingOfRenderedClicks), and
-  // the result does not depend on the threads that computed the chunks.
+  // The template's NCC is computed in chunks of 65536 starts (1.37 s at 48 kHz, onsets.cpp
+  // kNccChunk). 50 clicks over 10.6 s, click 25 a few samples after the fourth chunk boundary
+  // (262144: 0.3 + 25 x 0.206453 s = 5.4613 s, plus 25 x 0.37 samples): every click is found,
+  // matched and timed as well as within one chunk (SubSampleTimingOfRenderedClicks), and the result
+  // does not depend on the threads that computed the chunks.
   const std::vector<double> v(50, 1.0);
   const Rendered r = RenderClicks(v, 0.206453, 60.0, "copper-dish");
-  ASSERT_GT(r.x.size(), 262144u + 48000u);  // two chunks, the boundary a second inside
+  ASSERT_GT(r.x.size(), 262144u + 48000u);  // the boundary a second inside
   ASSERT_NEAR(r.onset_s[25] * r.rate_hz, 262144.0, 40.0);
   const OnsetResult res = OnsetDetector(OnsetOptions{}, r.rate_hz).Detect(r.x);
   const std::vector<double> err = Errors(res, r.onset_s);

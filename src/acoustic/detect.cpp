@@ -826,6 +826,15 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   per_block.available_threads = [&pool, &all_handed_out] {
     return 1 + (all_handed_out.load() ? pool->Idle() : 0);
   };
+  // The threads those stages take are a WorkerPool's, kept running from one stage to the next
+  // (its workers sleep until then; a block whose stages find it busy starts threads of its
+  // own). 10 minutes, two threads: the fifth of five full blocks runs alone after the short
+  // last one (measured below).
+  std::optional<WorkerPool> last_blocks_pool;
+  if (i1 - i0 > cap && threads > 1 && options.pool == nullptr) {
+    last_blocks_pool.emplace(threads);
+    per_block.pool = &*last_blocks_pool;
+  }
 
   struct InFlight {
     double own_lo_s, own_hi_s;

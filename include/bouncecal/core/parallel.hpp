@@ -36,7 +36,7 @@ int StageThreads(int requested, const std::function<int()>& available);
 // one, each call starts its threads and joins them: ~50 us per call back to back, and on a
 // virtual machine whose idle cores sleep (this project's 2-core one) the new thread often starts
 // 0.1-1 ms late, sometimes after the work is done (measured: a 1-minute recording's threshold
-// stage, 3.4 ms on two threads when its second thread started at once, 5.3 ms when it never
+// stage, 3.4 ms on two threads when its second thread started at once, 5.5 ms when it never
 // did). A pool's workers wait for the next call spinning for kSpinMicroseconds, then sleeping
 // until it comes; the calling thread is one of the threads. One call at a time: a call made while
 // another runs (from a task, or from another thread) gets false from TryRun and starts threads

@@ -401,18 +401,26 @@ long MinorFaults() {
   return u.ru_minflt;
 }
 
-TEST(Onsets, PrefaultHeapMapsTheMemoryOfTheAllocationsThatFollow) {
+// Why the heap-mapping tests cannot run here ("" if they can); when they can, the allocator is
+// set as the program sets it (src/cli/main.cpp): freed heap memory is kept.
+std::string WithoutHugePageHeap() {
 #if defined(BOUNCECAL_SANITIZED_BUILD)  // GCC's and Clang's tests (acoustic/avx2_clones.hpp)
-  GTEST_SKIP() << "the sanitizers' allocators do not take memory from glibc's heap";
-#endif
+  return "the sanitizers' allocators do not take memory from glibc's heap";
+#else
   std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
   std::string modes;
   std::getline(thp, modes);
   if (modes.find("[never]") != std::string::npos || modes.empty())
-    GTEST_SKIP() << "no transparent huge pages here";
-  // The allocator as the program sets it (src/cli/main.cpp): freed heap memory is kept.
+    return "no transparent huge pages here";
   mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
   mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
+  return "";
+#endif
+}
+
+TEST(Onsets, PrefaultHeapMapsTheMemoryOfTheAllocationsThatFollow) {
+  const std::string why = WithoutHugePageHeap();
+  if (!why.empty()) GTEST_SKIP() << why;
   constexpr std::size_t kFloats = std::size_t{6} << 20;  // two arrays of 24 MB: 12 288 pages
   PrefaultHeap(2 * kFloats * sizeof(float) + (std::size_t{4} << 20));
   const long before = MinorFaults();
@@ -428,16 +436,8 @@ TEST(Onsets, PrefaultHeapMapsTheMemoryOfTheAllocationsThatFollow) {
 // and the ones after, come from memory marked for huge pages (a few faults each, not one per
 // 4 KiB page: without it 12 300), and keep what this thread wrote; `first` ran on the helper.
 TEST(Onsets, HeapPrefaultMapsOnAHelperWhileThisThreadGoesOn) {
-#if defined(BOUNCECAL_SANITIZED_BUILD)
-  GTEST_SKIP() << "the sanitizers' allocators do not take memory from glibc's heap";
-#endif
-  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
-  std::string modes;
-  std::getline(thp, modes);
-  if (modes.find("[never]") != std::string::npos || modes.empty())
-    GTEST_SKIP() << "no transparent huge pages here";
-  mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
-  mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
+  const std::string why = WithoutHugePageHeap();
+  if (!why.empty()) GTEST_SKIP() << why;
   constexpr std::size_t kFloats = std::size_t{6} << 20;  // 24 MB each
   std::atomic<bool> ran{false};
   std::thread::id helper_id;

@@ -94,9 +94,9 @@ TEST(LiveDetector, IntervalsEqualTheBatchDetectorsOnTheBundledRecording) {
   ASSERT_EQ(batch.main().impacts.size(), 66u);  // README worked example
   EXPECT_GE(live.size(), 63u);
   EXPECT_GE(ReproducedIntervals(live, batch.main().impacts), 0.95);
-  // Re-run at a bounded rate: one run per redetect_every_s of audio, and one at the end.
+  // Re-run at a bounded rate: at most one run per min_redetect_s of audio, and one at the end.
   const double duration_s = a.info.duration_s();
-  EXPECT_LE(fed.detections, static_cast<int>(duration_s / LiveOptions{}.redetect_every_s) + 2);
+  EXPECT_LE(fed.detections, static_cast<int>(duration_s / LiveOptions{}.min_redetect_s) + 2);
 }
 
 // An impact is final once settle_s of audio follows it, and is then reported by the next run:
@@ -115,7 +115,7 @@ TEST(LiveDetector, ImpactsAreReportedAsSoonAsTheirTimingIsFinal) {
     if (frames == static_cast<std::int64_t>(a.channels[0].size())) continue;  // at Finish
     EXPECT_GE(fed_s, i.impact.time_s + o.settle_s) << "impact " << i.index;
     if (i.index < 2) continue;
-    const double bound = i.impact.time_s + o.settle_s + o.redetect_every_s + chunk / rate;
+    const double bound = i.impact.time_s + o.settle_s + o.max_redetect_s + chunk / rate;
     (fed_s <= bound ? prompt : late) += 1;
   }
   // Measured: every impact past the first two of the sequence.
@@ -197,7 +197,7 @@ TEST(LiveDetector, WindowStaysBoundedOnALongStream) {
   EXPECT_LT(max_window, static_cast<std::int64_t>(2 * a.channels[0].size()));
   EXPECT_LE(
       max_window_last_minute,
-      static_cast<std::int64_t>((o.keep_quiet_s + o.window_step_s + o.redetect_every_s) * rate) +
+      static_cast<std::int64_t>((o.keep_quiet_s + o.window_step_s + o.max_redetect_s) * rate) +
           4800);
   std::map<int, int> members;
   for (const LiveImpact& i : live.Impacts()) ++members[i.sequence];

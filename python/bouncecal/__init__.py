@@ -292,9 +292,9 @@ def calibrate(files=None, *, scene=None, height=None, height_sigma=None, impact_
         opts["set"] = _law_sets(set)
     _put(opts, "expression", expression, str)
     _put(opts, "strategy", strategy, str)
-    for name, value in (("free", free), ("fix", fix)):
+    for key, value in (("free", free), ("fix", fix)):
         if value is not None:
-            opts[name] = [value] if isinstance(value, str) else [str(v) for v in value]
+            opts[key] = [value] if isinstance(value, str) else [str(v) for v in value]
     _put(opts, "derivatives", derivatives, str)
     _put(opts, "rtol", rtol, float)
     _put(opts, "loss", loss, str)

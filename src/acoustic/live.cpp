@@ -58,8 +58,11 @@ bool LiveOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!detect.IsValid(error)) return false;
-  if (!(redetect_every_s > 0.0 && redetect_every_s <= 10.0))
-    return fail("redetect_every_s " + Num("%g", redetect_every_s) + ": must be in (0, 10] s");
+  if (!(redetect_fraction > 0.0 && redetect_fraction <= 1.0))
+    return fail("redetect_fraction " + Num("%g", redetect_fraction) + ": must be in (0, 1]");
+  if (!(min_redetect_s > 0.0 && min_redetect_s <= max_redetect_s && max_redetect_s <= 10.0))
+    return fail("min_redetect_s/max_redetect_s " + Num("%g", min_redetect_s) + "/" +
+                Num("%g", max_redetect_s) + ": need 0 < min <= max <= 10 s");
   if (!(settle_s >= 0.0 && settle_s <= 10.0))
     return fail("settle_s " + Num("%g", settle_s) + ": must be in [0, 10] s");
   if (!(context_s >= 0.0 && context_s <= 10.0))
@@ -109,11 +112,11 @@ LiveUpdate LiveDetector::Feed(const float* samples, std::size_t count) {
           BadSampleMessage(name_, samples[i], 0, frames_ + static_cast<std::int64_t>(i), rate_hz_));
   }
   LiveUpdate update;
-  const auto every = static_cast<std::int64_t>(std::ceil(options_.redetect_every_s * rate_hz_));
   std::size_t done = 0;
   // A large chunk is taken in steps, so that a caller that feeds seconds at once gets the same
   // runs (and the same window, bounded by max_window_s) as one that feeds it in small pieces.
   while (done < count) {
+    const std::int64_t every = RunEvery();
     const auto room =
         static_cast<std::size_t>(std::max<std::int64_t>(1, last_run_ + every - frames_));
     const std::size_t n = std::min(room, count - done);
@@ -123,6 +126,14 @@ LiveUpdate LiveDetector::Feed(const float* samples, std::size_t count) {
     if (frames_ - last_run_ >= every) Run(false, &update);
   }
   return update;
+}
+
+// The window the last run left (its length decides what the next run costs).
+std::int64_t LiveDetector::RunEvery() const {
+  const double held_s = static_cast<double>(last_run_ - start_) / rate_hz_;
+  const double every_s = std::clamp(options_.redetect_fraction * held_s, options_.min_redetect_s,
+                                    options_.max_redetect_s);
+  return static_cast<std::int64_t>(std::ceil(every_s * rate_hz_));
 }
 
 LiveUpdate LiveDetector::Finish() {
@@ -153,8 +164,8 @@ void LiveDetector::Run(bool final, LiveUpdate* update) {
     audio.info.frames = static_cast<std::int64_t>(window_.size());
     audio.info.format = "stream";
     audio.info.subtype = "FLOAT";
-    audio.channels.push_back(window_);
-    audio.clipping.push_back(AnalyzeClipping(window_, 0));
+    audio.channels.push_back(std::move(window_));  // lent to the run, taken back below
+    audio.clipping.push_back(AnalyzeClipping(audio.channels[0], 0));
     DetectOptions o = options_.detect;
     o.channel = ChannelSelection{ChannelSelection::Kind::kIndex, 0};
     o.start_s = 0.0;
@@ -165,8 +176,10 @@ void LiveDetector::Run(bool final, LiveUpdate* update) {
       for (const Warning& w : r.warnings)
         if (w.code == "clipped" || w.code == "detection_capped") Warn(w.code, w.message, update);
     } catch (const Error& e) {
+      window_ = std::move(audio.channels[0]);
       if (e.code() != ErrorCode::kSilence && e.code() != ErrorCode::kNoBounces) throw;
     }
+    if (window_.empty()) window_ = std::move(audio.channels[0]);
     ++detections_;
     ++update->detections;
     const double offset_s = static_cast<double>(start_) / rate_hz_;

@@ -2,8 +2,9 @@
 // ball is still bouncing (the server's live sessions, `bouncecal listen`, Python's Listener).
 //
 // A streaming form of the same stages, not another detector: each run is the batch detection
-// (DetectImpacts, detect.hpp) of a trailing window of the stream, re-run as audio arrives, at most
-// once per LiveOptions::redetect_every_s of audio. What the runs add is bookkeeping:
+// (DetectImpacts, detect.hpp) of a trailing window of the stream, re-run as audio arrives: after
+// new audio of LiveOptions::redetect_fraction of the window's length. What the runs add is
+// bookkeeping:
 //   window   the window starts before the current drop (context_s before the first member of
 //            every open sequence) or, with no sequence open, keep_quiet_s before the end: a drop
 //            needs three impacts to be a sequence, its first flight may last up to
@@ -53,10 +54,15 @@ struct LiveOptions {
   // The batch detection each run makes (channel, start_s and end_s are ignored: the stream is
   // mono and the window is the detector's).
   DetectOptions detect;
-  // Audio between two detection runs. Bounds the CPU time: each run detects the whole window
-  // (a drop: ~5-10 s of audio); 0.15 s keeps a steel ball's take under 10 % of a core at 48 kHz
-  // (tools/bench_live, tools/bench_live.mjs) and adds ~75 ms to the median latency.
-  double redetect_every_s = 0.15;
+  // The next run comes after new audio of this fraction of the window's length (within
+  // [min_redetect_s, max_redetect_s]). A run's cost grows with the window it detects, so this
+  // holds a stream's CPU share steady: runs are frequent while the window is short (a drop's
+  // first impacts) and sparser as it grows. 1/30: a 6.5 s window (no drop open) is detected
+  // every 0.22 s, a 12 s one (a drop and the one before it) every 0.4 s; measured 6-8 % of a
+  // core at 48 kHz (tools/bench_live, tools/bench_live.mjs), the median latency ~0.2 s.
+  double redetect_fraction = 1.0 / 30.0;
+  double min_redetect_s = 0.1;
+  double max_redetect_s = 0.5;
   // Audio that must follow a member before it is final: twice TimingOptions::fit_after_s
   // (10 ms), the farthest the timing stage reads past a member. Measured on the bundled
   // recording and four synth presets: 20, 50 and 100 ms give the same reports.
@@ -116,9 +122,10 @@ class LiveDetector {
   LiveDetector(const LiveDetector&) = delete;
   LiveDetector& operator=(const LiveDetector&) = delete;
 
-  // Appends mono samples and runs the detection when redetect_every_s of audio arrived since the
-  // last run. Throws Error(kBadSamples) for a NaN/Inf sample or one beyond kMaxSampleMagnitude,
-  // Error(kUsage) after Finish.
+  // Appends mono samples and runs the detection each time the audio redetect_fraction asks for
+  // has arrived (the runs depend on the samples only, not on how they are cut into calls). Throws
+  // Error(kBadSamples) for a NaN/Inf sample or one beyond kMaxSampleMagnitude, Error(kUsage) after
+  // Finish.
   LiveUpdate Feed(const float* samples, std::size_t count);
   LiveUpdate Feed(const std::vector<float>& samples) {
     return Feed(samples.data(), samples.size());
@@ -144,6 +151,7 @@ class LiveDetector {
   void Close(double end_s, bool final, LiveUpdate* update);
   void Advance(double end_s, LiveUpdate* update);
   void Warn(const std::string& code, const std::string& message, LiveUpdate* update);
+  std::int64_t RunEvery() const;  // frames between runs for the window held now
 
   double rate_hz_;
   LiveOptions options_;

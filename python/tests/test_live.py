@@ -77,11 +77,11 @@ def test_listener_reports_impacts_while_fed_and_finishes_with_the_analysis(sampl
                 impacts.append(m)
                 fed_when.append((at + 4800) / rate)
     assert len(impacts) >= 60
-    # Reported within 0.3 s of audio after it (20 ms to settle, a run every 0.15 s, a block of
-    # 0.1 s), but for a sequence's first two, which wait for the third, and the odd weak one the
-    # tracker takes in later.
+    # Reported within 0.62 s of audio after it (20 ms to settle, a run at most every 0.5 s, a
+    # block of 0.1 s), but for a sequence's first two, which wait for the third, and the odd weak
+    # one the tracker takes in later.
     late = [m for m, t in zip(impacts, fed_when)
-            if m["impact"]["index"] >= 2 and t - m["impact"]["time_s"] > 0.3]
+            if m["impact"]["index"] >= 2 and t - m["impact"]["time_s"] > 0.62]
     assert len(late) <= len(impacts) // 20
     # The bounce rows come with the impact that closes their flight.
     rows = [m["bounce"] for m in impacts if m["bounce"] is not None]

@@ -17,13 +17,14 @@ export function scratch(tag) {
 }
 
 // The recording as the fake microphone plays it: 16-bit WAV at 44.1 kHz, the rate Chromium's
-// fake device runs at (a file at another rate is resampled, and the take is no longer the file),
-// with `pad_s` of silence after it: past the file's end the fake device beeps, and the beeps
-// are impacts to the detector.
+// fake device runs at (a file at another rate is resampled, and the take is no longer the file);
+// with 1 s of digital silence before it (the capture starts with tens of ms of zeros, and a
+// step from zeros into the room's noise is an onset to the detector: in silence there is none)
+// and `pad_s` after it (past the file's end the fake device beeps, and beeps are impacts).
 export function toWav(source, dir, name = 'rec.wav', pad_s = 3) {
   const out = path.join(dir, name);
   execFileSync('ffmpeg', ['-loglevel', 'error', '-y', '-i', source, '-ar', '44100',
-    '-af', 'apad=pad_dur=' + pad_s, '-c:a', 'pcm_s16le', out]);
+    '-af', 'adelay=1000:all=1,apad=pad_dur=' + pad_s, '-c:a', 'pcm_s16le', out]);
   return out;
 }
 

@@ -59,8 +59,8 @@ async function recordTest(server, dir, attempt) {
     page.on('pageerror', (e) => errors.push(String(e)));
     await page.goto(server.url + '?autostart=1');
     await page.waitForFunction(() => document.body.dataset.state === 'recording', { timeout: 20000 });
-    // The file plays once (9.2 s): stop once that much was captured, and a second more.
-    await page.waitForFunction(() => window.bouncecal.captured_s >= 10.2, { timeout: 60000, polling: 200 });
+    // The file plays once (1 s of silence, the 9.2 s recording): stop a second after it.
+    await page.waitForFunction(() => window.bouncecal.captured_s >= 11.2, { timeout: 60000, polling: 200 });
     await page.click('#stop');
     await page.waitForFunction(() => ['ready', 'error'].includes(document.body.dataset.state), { timeout: 60000 });
     const state = await page.evaluate(() => ({

@@ -236,7 +236,8 @@ void ServeConnection(Server::Impl& s, Tcp::socket& socket, Connection& conn) {
     if (websocket::is_upgrade(req)) return ServeLive(s, socket, conn, req);
     const unsigned version = req.version();
     const bool keep_alive = req.keep_alive();
-    RequestDir dir(s.root);
+    // The request's directory goes before the response does (the response is in memory).
+    std::optional<RequestDir> dir(std::in_place, s.root);
     ApiRequest ar;
     ar.method = std::string(req.method_string());
     ar.target = std::string(req.target());
@@ -244,13 +245,16 @@ void ServeConnection(Server::Impl& s, Tcp::socket& socket, Connection& conn) {
       ar.content_type = std::string(it->value());
     http::request_parser<http::file_body> parser(std::move(head));
     parser.body_limit(limit);
-    const std::string body = dir.path() + "/body";
+    const std::string body = dir->path() + "/body";
     parser.get().body().open(body.c_str(), beast::file_mode::write, ec);
     if (ec) {
+      dir.reset();
       RespondError(socket, 500, ErrorCode::kInternal, "cannot store the request body");
       return;
     }
     if (const auto failed = ReadBody(socket, buffer, parser, conn, limit)) {
+      parser.get().body().close();
+      dir.reset();
       RespondError(socket, failed->first, ErrorCode::kUsage, failed->second, version);
       return;
     }
@@ -258,7 +262,8 @@ void ServeConnection(Server::Impl& s, Tcp::socket& socket, Connection& conn) {
     ar.body_bytes = static_cast<std::size_t>(std::filesystem::file_size(body));
     ar.body_path = body;
     conn.busy = true;
-    const ApiResponse r = s.api->Handle(ar, dir.path());
+    const ApiResponse r = s.api->Handle(ar, dir->path());
+    dir.reset();
     conn.busy = false;
     conn.Touch();
     if (!Respond(socket, r, version, keep_alive) || !keep_alive || s.stopping) return;

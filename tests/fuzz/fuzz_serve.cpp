@@ -2,8 +2,11 @@
 // library's options, multipart/form-data bodies, the live stream's messages through a whole
 // LiveSession (start, samples, stop), and a request through the API's router. The first byte
 // chooses which; the rest is the input. Contract (fuzz_util.hpp): a result or bouncecal::Error.
+#include <unistd.h>
+
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <string_view>

@@ -23,7 +23,7 @@
 //   --vary-e D            varied drops: e + U(-D, D) [0]
 //   --height M            drop height [the scene file's, else estimated from the marks]
 //   --e E                 constant restitution [estimated from the marks]
-//   --e0 E0 --e-slope C [--e-power P]   e = e0 - c v^p (c < 0: e falls as the ball slows)
+//   --e0 E0 --e-slope C [--e-power P]   e = e0 - c v^p
 //   --scatter-e S         per-bounce scatter of e [0]
 //   --drag none|linear|quadratic   air drag of the schedule [the scene file's, else none]
 //   --scene FILE          scene file for the schedule (ball, drag, height)
@@ -191,9 +191,11 @@ void List(const SoundSource& s) {
   std::printf("noise: %.1f dBFS RMS from %.2f s of quiet (frame %d, %d frames)\n",
               20.0 * std::log10(s.noise.rms()), s.noise.quiet_s(), s.noise.frame(),
               s.noise.frames_used());
-  std::printf("alignment sigma: %s\n",
-              s.alignment_sigma_s ? (ShortestNumber(*s.alignment_sigma_s * 1e6) + " us").c_str()
-                                  : "- (fewer than 3 cuts)");
+  if (s.alignment_sigma_s)
+    std::printf("alignment sigma: %.1f us (closure of the pairwise lags)\n",
+                *s.alignment_sigma_s * 1e6);
+  else
+    std::printf("alignment sigma: - (fewer than 3 cuts; one cut per drop is exact)\n");
   std::printf("%4s %4s %10s %10s %8s %6s %8s %7s %8s\n", "cut", "k", "mark_s", "onset_s", "lag_us",
               "ncc", "v_m_s", "peak", "len_ms");
   for (std::size_t i = 0; i < s.cuts.size(); ++i) {

@@ -270,8 +270,7 @@ bool RestitutionModel::IsValid(std::string* error) const {
       break;
     case Kind::kPowerLaw:
       if (!(e0 >= 0.0 && e0 <= 1.0)) return fail("e0 = " + Num(e0) + " (expected 0..1)");
-      // c < 0: e falls as the ball slows (e(v) is still checked to lie in [0, 1] per impact).
-      if (!Finite(c)) return fail("c = " + Num(c) + " (expected a finite number)");
+      if (!(c >= 0.0 && Finite(c))) return fail("c = " + Num(c) + " (expected >= 0)");
       if (!(p > 0.0 && Finite(p))) return fail("p = " + Num(p) + " (expected > 0)");
       break;
     case Kind::kFunction:

@@ -295,7 +295,8 @@ std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& drop)
 //  with a rebound (v_out > 0),
 //  "render": {...}, "drops": [{"impacts": [{"index", "time_s", "onset_s", "v_in_m_s",
 //  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped", "amplitude_per_channel",
-//  "snr_db_per_channel"}...]}], "distractors": [...]}
+//  "snr_db_per_channel"}...]} (a varied drop of PlanDrops adds "height_m", "e_shift",
+//  "scatter_seed")], "distractors": [...]}
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result);
 // The same document for impacts that came from elsewhere (e.g. the contact-law simulator):
 // everything but "restitution" and "truth_options"; add your own keys to say where the

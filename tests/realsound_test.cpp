@@ -528,5 +528,35 @@ TEST(RealSoundBadInput, MarksSpecAndSourceErrorsNameTheProblem) {
   EXPECT_THROW(RenderRealSound(src, spec), Error);
 }
 
+// The program (tools/realsound.cpp): writes audio and truth together, refuses to overwrite,
+// names bad arguments with the CLI's exit codes.
+TEST(RealSoundTool, WritesBothFilesAndFailsCleanly) {
+  const std::string tool = std::string(BOUNCECAL_BUILD_DIR) + "/realsound";
+  if (!fs::exists(tool)) GTEST_SKIP() << tool << " not built";
+  const SynthSource s;
+  const std::string out = s.dir / "out.flac";
+  auto run = [&](const std::string& args) {
+    return testing_util::RunCommand(tool, "--source " + s.wav + " " + args);
+  };
+  auto r = run("-o " + out + " --drops 2 --gap 0.2,0.4 --seed 3");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const TruthFile t = LoadTruth(s.dir / "out.truth.json");
+  EXPECT_EQ(t.drops.size(), 2u);
+  EXPECT_EQ(ReadAudio(out).info.sample_rate_hz, t.sample_rate_hz);
+  r = run("-o " + out);  // exists
+  EXPECT_EQ(r.exit_code, 11) << r.err;
+  EXPECT_EQ(run("-o " + out + " --force").exit_code, 0);
+  EXPECT_EQ(run("--list").exit_code, 0);
+  EXPECT_EQ(run("-o " + (s.dir / "x.wav") + " --banana").exit_code, 2);
+  EXPECT_EQ(run("-o " + (s.dir / "x.wav") + " --cut-choice nope").exit_code, 2);
+  EXPECT_EQ(run("-o " + (s.dir / "x.wav") + " --drops 0").exit_code, 9);
+  EXPECT_EQ(run("-o " + (s.dir / "x.wav") + " --cut 99").exit_code, 9);
+  EXPECT_FALSE(fs::exists(s.dir / "x.wav"));
+  EXPECT_FALSE(fs::exists(s.dir / "x.truth.json"));
+  r = testing_util::RunCommand(tool, "--source " + (s.dir / "absent.wav") + " -o " + out);
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("absent"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace bouncecal

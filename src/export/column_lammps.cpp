@@ -2,7 +2,7 @@
 // Update 2"), and the sphere file both simulators read.
 //
 // Keywords (LAMMPS GRANULAR package: pair_style granular, fix wall/gran granular, fix freeze,
-// fix halt, delete_atoms, write_coeff):
+// fix halt, delete_atoms):
 //   pair_coeff I J hertz kn e damping tsuji tangential mindlin kt x mu rolling sds k_roll 0 mu_r
 //     F_n = kn sqrt(R* d) d + alpha(e) sqrt(m* kn sqrt(R* d)) v_n (alpha: LAMMPS' polynomial),
 //     F_t = min(mu F_n, |kt a xi + x eta_n v_t|), torque_roll = R* min(mu_r F_n, k_roll |xi_r|)
@@ -76,7 +76,7 @@ std::string LammpsColumnDeck(const ColumnPlan& p, const std::vector<std::string>
      << "pair_coeff 1 1 " << Granular(p.bead_bead) << "\n"
      << "pair_coeff 1 2 " << Granular(p.bead_floor) << "\n"
      << "pair_coeff 2 2 " << Granular(p.bead_floor) << "\n"
-     << "write_coeff column.coeffs\n"
+
      << "fix freeze floor freeze\n"
      << "fix integrate beads nve/sphere\n"
      << "fix gravity beads gravity 9.8 vector 0 0 -1\n"

@@ -233,34 +233,39 @@ TEST(ColumnAwk, MeasuresFrontHeightAndProfilesOfTheContiguousDeposit) {
   {
     // dt = 1e-4 s: snapshots at 0, 0.04 s (step 400); w = 0.01 m bins.
     std::ofstream d(dir / "column.dump");
-    WriteDump(d, 0, {{0.005, 0.17, 0.005}, {0.015, 0.1, 0.005}, {0.025, 0.05, 0.005}});
+    WriteDump(d, 0, {{0.005, 0.175, 0.005}, {0.015, 0.1, 0.005}, {0.025, 0.05, 0.005}});
     // at 0.04 s the bead at 0.035 m is beyond an empty bin
-    WriteDump(d, 400, {{0.005, 0.12, 0.005}, {0.015, 0.08, 0.005}, {0.035, 0.02, 0.005}});
+    WriteDump(d, 400, {{0.005, 0.12, 0.005}, {0.015, 0.1, 0.005}, {0.035, 0.02, 0.005}});
     std::ofstream r(dir / "rest.dump");
     // a bead at 0.3 m beyond an empty bin is not part of the deposit
     WriteDump(r, 4000, {{0.005, 0.06, 0.005}, {0.015, 0.04, 0.005}, {0.3, 0.005, 0.005}});
   }
-  const CommandResult c =
-      RunCommand("sh", "-c 'cd " + dir.path().string() +
-                           " && awk -v dt=1e-4 -v every=0.01 -v w=0.01 -v width=0.01 -v frame=0.04 "
-                           "-v frames=13 -v li=0.1 "
-                           "-v ranks=2 -v wall=31 -f column.awk log column.dump rest.dump'");
+  const CommandResult c = RunCommand(
+      "sh",
+      "-c 'cd " + dir.path().string() +
+          " && awk -v dt=1e-4 -v every=0.01 -v w=0.01 -v width=0.01 -v h_col=0.18 -v frame=0.04 "
+          "-v frames=13 -v li=0.1 "
+          "-v ranks=2 -v wall=31 -f column.awk log column.dump rest.dump'");
   ASSERT_EQ(c.exit_code, 0) << c.err;
   const json s = json::parse("{" + c.out + "\"end\": 0}");
   EXPECT_EQ(s["beads"], 3);
   EXPECT_EQ(s["floor_spheres"], 7);
-  EXPECT_NEAR(s["initial_height_m"].get<double>(), 0.175, 1e-9);  // t = 0: one bin column
-  EXPECT_NEAR(s["run_out_m"].get<double>(), 0.02, 1e-9);          // 0.015 + r; 0.3 excluded
+  EXPECT_NEAR(s["initial_height_m"].get<double>(), 0.18, 1e-9);  // t = 0: one bin column
+  EXPECT_NEAR(s["run_out_m"].get<double>(), 0.02, 1e-9);         // 0.015 + r; 0.3 excluded
   EXPECT_NEAR(s["final_height_m"].get<double>(), 0.065, 1e-9);
   EXPECT_EQ(s["at_rest"], true);
   EXPECT_NEAR(s["time_to_rest_s"].get<double>(), 0.4, 1e-9);
   EXPECT_EQ(s["steps"], 5000);
   EXPECT_NEAR(s["particle_steps_per_s_per_rank"].get<double>(), 3.0 * 4000 / 20 / 2, 1e-9);
+  // At 0.04 s: bead 1 above the diagonal z = 0.18 (1 - x / 0.1) fell (0.175 -> 0.12 m); of the
+  // two below it, bead 2 stayed and bead 3 moved 0.01 m.
+  EXPECT_EQ(s["moved_by_first_frame"]["above_diagonal"].get<double>(), 1.0);
+  EXPECT_EQ(s["moved_by_first_frame"]["below_diagonal"].get<double>(), 0.5);
   const std::string front = Slurp(dir / "front.csv.tmp");
-  EXPECT_EQ(front, "time_s,front_m,height_m\n0,0.03,0.175\n0.04,0.02,0.125\n");
+  EXPECT_EQ(front, "time_s,front_m,height_m\n0,0.03,0.18\n0.04,0.02,0.125\n");
   const std::string profile = Slurp(dir / "profile.csv.tmp");
-  EXPECT_NE(profile.find("0,0,0.005,0.175\n"), std::string::npos) << profile;
-  EXPECT_NE(profile.find("0.04,0.04,0.015,0.085\n"), std::string::npos) << profile;
+  EXPECT_NE(profile.find("0,0,0.005,0.18\n"), std::string::npos) << profile;
+  EXPECT_NE(profile.find("0.04,0.04,0.015,0.105\n"), std::string::npos) << profile;
   EXPECT_EQ(profile.find("0.04,0.04,0.035"), std::string::npos) << profile;
   EXPECT_NE(profile.find("rest,0.4,0.015,0.045\n"), std::string::npos) << profile;
   EXPECT_EQ(profile.find("0.305"), std::string::npos) << profile;

@@ -20,10 +20,13 @@ std::string ColumnAwk() {
 # least half the floor (sum of pi r^2 >= 0.45 w width: half a hexagonal monolayer, 0.907): beyond,
 # beads lie scattered rather than as a layer (the paper's front is 2-3 beads thick). Its front is
 # the largest x + r of those beads and its height in a bin the largest z + r there.
+# The failure at the first frame (the paper: along the diagonal (0, H)-(L, 0) by 0.04 s): of the
+# beads above and below that diagonal at t = 0, the fractions that have moved by more than a tenth
+# of w at the snapshot nearest `frame` (what the paper's video could not resolve).
 # Writes profile.csv (label,time_s,x_m,height_m: the deposit at t = 0, at multiples of the
 # paper's frame interval `frame` up to `frames` of them, and at rest), front.csv
 # (time_s,front_m,height_m every snapshot) and prints the measured part of summary.json.
-# Usage: awk -v dt=S -v every=S -v w=M -v width=0.2 -v frame=0.04 -v frames=13 -v li=0.1 -v ranks=N -v wall=S
+# Usage: awk -v dt=S -v every=S -v w=M -v width=0.2 -v h_col=0.18 -v frame=0.04 -v frames=13 -v li=0.1 -v ranks=N -v wall=S
 #            -f column.awk LOG column.dump rest.dump
 BEGIN {
   nloop = 0; beads = -1; atrest = -1; h0 = -1
@@ -47,6 +50,8 @@ file == 1 { next }
 /^ITEM: ATOMS/ { section = "atoms"; next }
 section == "step" { if (natoms_seen) finish(); step = $1 + 0; snapfile = file; natoms_seen = 1; section = ""; next }
 section == "atoms" {
+  if (snapfile == 2 && step == 0) { x0[$1] = $2; z0[$1] = $4 }
+  cx[$1] = $2; cz[$1] = $4
   b = int($2 / w); occ[b] += 3.14159265358979 * $5 * $5 / (w * width)
   if (!(b in top) || $4 + $5 > top[b]) top[b] = $4 + $5
   if (!(b in right) || $2 + $5 > right[b]) right[b] = $2 + $5
@@ -60,12 +65,23 @@ function finish(   t, k, b, front, height, label) {
   if (snapfile == 3) label = "rest"
   else if (step == 0) label = "0"
   else { k = int(t / frame + 0.5); if (k >= 1 && k <= frames && (t - k * frame) ^ 2 < (0.5 * every) ^ 2) label = sprintf("%.2f", k * frame) }
+  if (label == sprintf("%.2f", frame) && !done_failure) failure()
   if (label != "") for (b = 0; (b in occ) && occ[b] >= 0.45; b++) printf "%s,%.6g,%.6g,%.6g\n", label, t, (b + 0.5) * w, top[b] > "profile.csv.tmp"
   if (snapfile == 2) printf "%.6g,%.6g,%.6g\n", t, front, height > "front.csv.tmp"
   if (snapfile == 2 && h0 < 0) h0 = height
   last_front = front; last_height = height; last_t = t
   natoms_seen = 0
   for (b in occ) { delete occ[b]; delete top[b]; delete right[b] }
+  for (id in cx) { delete cx[id]; delete cz[id] }
+}
+function failure(   id, above, moved) {
+  done_failure = 1
+  for (id in cx) {
+    if (!(id in x0)) continue
+    above = z0[id] > h_col * (1 - x0[id] / li)
+    moved = (cx[id] - x0[id]) ^ 2 + (cz[id] - z0[id]) ^ 2 > (0.1 * w) ^ 2
+    n_side[above]++; n_moved[above] += moved
+  }
 }
 END {
   if (natoms_seen) finish()
@@ -81,6 +97,8 @@ END {
   printf "  \"settle_steps\": %d,\n  \"collapse_steps\": %d,\n  \"steps\": %d,\n", settle_steps, collapse_steps, settle_steps + collapse_steps
   printf "  \"ranks\": %d,\n  \"wall_time_s\": %.4g,\n  \"settle_wall_s\": %.4g,\n  \"collapse_wall_s\": %.4g,\n", ranks, wall, settle_wall, collapse_wall
   printf "  \"particle_steps_per_s_per_rank\": %.4g,\n", pps
+  printf "  \"moved_by_first_frame\": {\"above_diagonal\": %s, \"below_diagonal\": %s},\n", \
+    n_side[1] ? sprintf("%.3f", n_moved[1] / n_side[1]) : "null", n_side[0] ? sprintf("%.3f", n_moved[0] / n_side[0]) : "null"
 }
 )AWK";
 }

@@ -45,11 +45,13 @@ constexpr double kSettleExtra_s = 0.5, kDumpInterval_s = 0.01;
 constexpr double kMinBeadsAcross = 3.0;
 // The column's length in beads: the largest bead plus the pour's wall gaps.
 constexpr double kBeadSpan = 1.0 + 2.0 * kPourGap;
-// Peak resident memory per sphere (beads and floor), measured with /usr/bin/time -v on the
-// full column (28 k beads + 10.9 k floor spheres): LAMMPS 29 Sep 2021 (1 rank) and Yade 2023.02a,
-// plus a fixed start-up cost per process.
-constexpr double kLammpsBytesPerSphere = 2.0e3, kLammpsBytesPerRank = 60e6;
-constexpr double kYadeBytesPerSphere = 6.0e3, kYadeBytesBase = 400e6;
+// Peak resident memory, measured with /usr/bin/time -v at the start of the full column (39.6 k
+// spheres) and of scale 0.25 (1.15 k): LAMMPS 29 Sep 2021 64 and 34 MB (0.8 kB per sphere over
+// a 33 MB process), Yade 2023.02a 392 and 259 MB (3.5 kB per sphere over 255 MB). The per-sphere
+// figures are taken ~2.5x (2 and 8 kB) to allow for the contact histories of the settled pile,
+// which the start does not have yet.
+constexpr double kLammpsBytesPerSphere = 2.0e3, kLammpsBytesPerRank = 40e6;
+constexpr double kYadeBytesPerSphere = 8.0e3, kYadeBytesBase = 300e6;
 
 double Cube(double x) { return x * x * x; }
 

@@ -8,6 +8,7 @@
 // Human summary on stdout by default; --json prints the mapping ({target, simulator_version,
 // law, native_law, exact, max_e_error, notes[], ...}, also written to DIR/mapping.json).
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
 #include <string>
@@ -39,6 +40,7 @@ struct ExportFlags {
   std::string wall_params;
   double column_restitution = 0.0;
   double rolling_friction = ColumnOptions{}.rolling_friction;
+  uint64_t column_seed = ColumnOptions{}.seed;
 };
 
 void PrintHuman(const ExportResult& r, const std::string& dir) {
@@ -85,6 +87,7 @@ void Run(const ExportFlags& f) {
   o.column.wall_params = f.wall_params;
   o.column.restitution = f.column_restitution;
   o.column.rolling_friction = f.rolling_friction;
+  o.column.seed = f.column_seed;
   std::string why;
   if (!o.IsValid(&why)) throw Error(ErrorCode::kUsage, why);
   const ExportResult r = ExportDeck(f.params, f.out_dir, o);  // main() names the flags
@@ -132,6 +135,8 @@ void RegisterExport(CLI::App& app) {
                   "column: e for every pair instead of the fits' (to see how damping matters)");
   sub->add_option("--rolling-friction", flags->rolling_friction,
                   "column: rolling friction coefficient mu_r (default 0.093, docs/column.md)");
+  sub->add_option("--column-seed", flags->column_seed,
+                  "column: seed of the bead sizes and the pour (default 3)");
   sub->callback([flags, particles]() {
     flags->particles_given = particles->count() > 0;
     Run(*flags);

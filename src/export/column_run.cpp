@@ -137,16 +137,25 @@ std::string ColumnRunScript(const ColumnPlan& p) {
                 "# BOUNCECAL_COLLAPSE_STEPS shorten the phases.\n"
               : "# NP=N ./run.sh runs N MPI ranks; extra arguments go to lmp (-var settle_steps N\n"
                 "# -var collapse_steps N shorten the phases).\n")
+     << "# BOUNCECAL_POSTPROCESS=1 ./run.sh only remakes the outputs from a finished run's log "
+        "and\n"
+     << "# dumps (its wall time kept from summary.json).\n"
      << "# Fails loudly (message on stderr, non-zero exit) when " << prog
      << " is missing or fails.\n"
      << "set -eu\n"
      << "cd \"$(dirname \"$0\")\"\n"
+     << "NP=${NP:-1}\n"
+     << "if [ \"${BOUNCECAL_POSTPROCESS:-0}\" = 1 ]; then\n"
+     << "  [ -s rest.dump ] || { echo \"run.sh: no finished run to post-process\" >&2; exit 1; }\n"
+     << "  wall=$(grep -o '\"wall_time_s\": [0-9.e+-]*' summary.json 2>/dev/null | awk '{print "
+        "$2}')\n"
+     << "  wall=${wall:-0}\n"
+     << "else\n"
      << "if ! command -v " << prog << " >/dev/null 2>&1; then\n"
      << "  echo \"run.sh: " << prog << " not found on PATH (Debian 12: apt-get install -y " << pkg
      << ")\" >&2\n"
      << "  exit 127\n"
      << "fi\n"
-     << "NP=${NP:-1}\n"
      << "rm -f column.dump rest.dump profile.csv front.csv summary.json\n"
      << "start=$(date +%s.%N)\n";
   std::string log;
@@ -169,11 +178,13 @@ std::string ColumnRunScript(const ColumnPlan& p) {
      << "end=$(date +%s.%N)\n"
      << "[ -s rest.dump ] || { echo \"run.sh: " << prog << " wrote no rest.dump\" >&2; exit 1; }\n"
      << "wall=$(echo \"$end $start\" | awk '{printf \"%.3f\", $1 - $2}')\n"
+     << "fi\n"
      << "{\n"
      << "  printf '{\\n  \"schema\": \"bouncecal.column/1\",\\n  \"simulator\": \"" << prog
      << "\",\\n'\n"
      << "  awk -v dt=" << Num(p.time_step_s) << " -v every=" << Num(p.dump_interval_s)
      << " -v w=" << Num(p.d_mean_m) << " -v width=" << Num(ColumnPaper::kBoxWidth_m)
+     << " -v h_col=" << Num(ColumnPaper::kColumnHeight_m)
      << " -v frame=" << Num(ColumnPaper::kFrameInterval_s)
      << " -v frames=13 -v li=" << Num(ColumnPaper::kColumnLength_m)
      << " -v ranks=\"$NP\" -v wall=\"$wall\" -f column.awk " << log << " column.dump rest.dump\n"

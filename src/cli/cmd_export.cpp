@@ -80,7 +80,7 @@ void Run(const ExportFlags& f) {
   o.impacts = f.impacts;
   o.time_step_e_error = f.dt_e_error;
   o.packing_time_s = f.packing_time_s;
-  o.packing_particles = f.particles;
+  if (o.scene == ExportScene::kPacking) o.packing_particles = f.particles;
   o.packing_restitution = f.packing_restitution;
   o.column.scale = f.scale;
   o.column.particles = f.particles_given && o.scene == ExportScene::kColumn ? f.particles : 0;

@@ -6,7 +6,6 @@
 #include <atomic>
 #include <cctype>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <cstring>
 #include <deque>
@@ -15,9 +14,7 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
-#include <thread>
 
 #include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
@@ -258,8 +255,6 @@ OnsetOptions OnsetOptionsOf(const DetectOptions& options) {
   oo.refine = true;  // locate at full resolution; refine = false coarsens the times at the end
   oo.lpc_order = options.lpc_order;
   oo.threads = options.threads;
-  oo.available_threads = options.available_threads;
-  oo.pool = options.pool;
   return oo;
 }
 
@@ -286,8 +281,6 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
 
   TimingOptions tim;
   tim.lpc_order = options.lpc_order;
-  tim.available_threads = options.available_threads;
-  tim.pool = options.pool;
   // Every timing round starts from the detector's own times (the anchors), not from the previous
   // round's output: a round that began there would move the AIC windows and the lag searches by
   // the previous round's result, and a member whose own AIC pick pointed a ringing cycle away
@@ -314,18 +307,15 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   // changed (a detector time equal to another's timed time: never seen) is timed again here,
   // so the result is the serial one.
   auto time_from_anchors = [&](const std::vector<Sequence*>& which) {
-    const int threads = StageThreads(options.threads, options.available_threads);
+    const int threads = ResolveThreads(options.threads);
     std::vector<std::vector<double>> anchors(which.size());
     std::vector<Sequence> timed(which.size());
     for (std::size_t i = 0; i < which.size(); ++i) anchors[i] = anchors_of(*which[i]);
     const int inner = which.size() == 1 ? threads : 1;
-    ParallelFor(
-        threads, which.size(),
-        [&](std::size_t i) {
-          timed[i] = *which[i];
-          time_at(anchors[i], inner, &timed[i]);
-        },
-        options.pool);
+    ParallelFor(threads, which.size(), [&](std::size_t i) {
+      timed[i] = *which[i];
+      time_at(anchors[i], inner, &timed[i]);
+    });
     for (std::size_t i = 0; i < which.size(); ++i) {
       std::vector<double> now = anchors_of(*which[i]);
       if (now != anchors[i]) {
@@ -707,102 +697,17 @@ void MergeBlockResult(BlockResult r, double own_lo_s, double own_hi_s, bool last
   }
 }
 
-// Threads that detect the blocks handed to them, in the order handed, each result a future; the
-// same threads for every block of the recording. Each thread's allocations come from an arena of
-// the allocator of its own, which a thread started per block (std::async, before) could get
-// anew, its memory first written again; here each thread's first block maps its arena's memory
-// at once (DetectBlock's prefault) and the later ones reuse it. Measured (10 minutes, two
-// threads, 21 alternating runs): 0.663 -> 0.597 s, page faults 11 700 -> 6 700; bench_long in
-// one loop: 10, 30 and 60 minutes 1.09, 1.13 and 1.02 times faster.
-class BlockWorkers {
- public:
-  // A thread that cannot be started (std::system_error) ends the ones started, then rethrows.
-  BlockWorkers(int n, std::function<BlockResult(const Block&, bool first)> detect)
-      : detect_(std::move(detect)) {
-    try {
-      for (int i = 0; i < n; ++i) threads_.emplace_back([this] { Run(); });
-    } catch (...) {
-      Close();
-      throw;
-    }
-  }
-  // Finishes the blocks being detected, drops those not started (an error ended the reading),
-  // and joins.
-  ~BlockWorkers() { Close(); }
-  BlockWorkers(const BlockWorkers&) = delete;
-  BlockWorkers& operator=(const BlockWorkers&) = delete;
-
-  // Threads waiting for a block while none is queued.
-  int Idle() {
-    std::lock_guard<std::mutex> lock(m_);
-    return queue_.empty() ? waiting_ : 0;
-  }
-
-  std::future<BlockResult> Submit(Block b) {
-    std::future<BlockResult> f;
-    {
-      std::lock_guard<std::mutex> lock(m_);
-      queue_.push_back({std::move(b), {}});
-      f = queue_.back().result.get_future();
-    }
-    cv_.notify_one();
-    return f;
-  }
-
- private:
-  struct Job {
-    Block block;
-    std::promise<BlockResult> result;
-  };
-  void Close() {
-    {
-      std::lock_guard<std::mutex> lock(m_);
-      closing_ = true;
-    }
-    cv_.notify_all();
-    for (std::thread& t : threads_) t.join();
-  }
-  void Run() {
-    for (bool first = true;; first = false) {
-      Job job;
-      {
-        std::unique_lock<std::mutex> lock(m_);
-        ++waiting_;
-        cv_.wait(lock, [this] { return closing_ || !queue_.empty(); });
-        --waiting_;
-        if (closing_) return;
-        job = std::move(queue_.front());
-        queue_.pop_front();
-      }
-      try {
-        job.result.set_value(detect_(job.block, first));
-      } catch (...) {
-        job.result.set_exception(std::current_exception());
-      }
-    }
-  }
-  std::function<BlockResult(const Block&, bool)> detect_;
-  std::mutex m_;
-  std::condition_variable cv_;
-  std::deque<Job> queue_;
-  int waiting_ = 0;
-  bool closing_ = false;
-  std::vector<std::thread> threads_;
-};
-
 // Reads frames [i0, i1) of the recording block by block and runs every candidate signal on
 // each block (DetectBlock), merging what each finds in block order (MergeBlock); then reads the
 // rest of the file, so that every sample is checked and the clipping reports are complete.
 // A recording of one block is detected on this thread, its stages split among
-// DetectOptions::threads; several blocks are detected concurrently on that many BlockWorkers
-// (each block single-threaded), while this thread reads ahead. One block more than the workers
-// is handed out, so that a worker that finishes finds the next block queued instead of waiting
-// for this thread to merge the oldest and read: at most threads + 2 blocks in memory (10
-// minutes, two threads, 15 alternating runs: 630 -> 614 ms median). The last blocks' stages
-// take the workers left idle (DetectOptions::available_threads; 681 -> 630 ms). The cuts depend
-// only on the audio, and the merge is in order, so the result is the serial one. (Giving the
-// last blocks' stages all the threads from their start, whether or not a worker was idle, was
-// slower on the 2-core machine: 0.79-1.06 s against 0.69-0.76 s for a 10-minute file.)
+// DetectOptions::threads. Several blocks are detected concurrently as jobs on the executor
+// (core/parallel.hpp), while this thread reads ahead; one block more than the threads is handed
+// out, so that a thread that finishes finds the next block queued: at most threads + 2 blocks in
+// memory. Each block's stages ask for all the threads too: while every thread has a block their
+// shares wait in the queue, and the threads that have no block left take them, so the last
+// blocks end sooner. The cuts depend only on the audio, and the merge is in order, so the result
+// is the serial one.
 void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
                   const std::vector<int>& choices, const DetectOptions& options,
                   std::vector<SignalAcrossBlocks>* signals) {
@@ -812,29 +717,8 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   const std::int64_t margin = static_cast<std::int64_t>(kBlockMarginS * rate);
   const std::int64_t search = std::min(cap / 4, static_cast<std::int64_t>(kMaxCutSearchS * rate));
   const int threads = ResolveThreads(options.threads);
-  // A block's stages run on its worker alone while blocks are still to come; once the last
-  // block is handed out, each stage that starts also takes the workers left without a block
-  // (StageThreads): the recording's last blocks, which would otherwise finish on one core each
-  // while the others wait, end sooner. The values do not depend on it.
-  // `pool` is the workers' (set before the first block is handed out, read only after the last
-  // one is); the workers themselves are declared after per_block, so that an error that ends
-  // the reading joins their threads while the options they use still exist.
-  std::atomic<bool> all_handed_out{false};
-  BlockWorkers* pool = nullptr;
   DetectOptions per_block = options;
   per_block.threads = threads;
-  per_block.available_threads = [&pool, &all_handed_out] {
-    return 1 + (all_handed_out.load() ? pool->Idle() : 0);
-  };
-  // The threads those stages take are a WorkerPool's, kept running from one stage to the next
-  // (its workers sleep until then; a block whose stages find it busy starts threads of its
-  // own). 10 minutes, two threads: the fifth of five full blocks runs alone after the short
-  // last one (measured below).
-  std::optional<WorkerPool> last_blocks_pool;
-  if (i1 - i0 > cap && threads > 1 && options.pool == nullptr) {
-    last_blocks_pool.emplace(threads);
-    per_block.pool = &*last_blocks_pool;
-  }
 
   struct InFlight {
     double own_lo_s, own_hi_s;
@@ -842,7 +726,18 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     std::future<BlockResult> result;
   };
   std::deque<InFlight> in_flight;
-  std::unique_ptr<BlockWorkers> workers;
+  // The jobs read per_block, rate and choices: an error that ends the reading waits for the
+  // ones running (those not started yet return at once) before they go out of scope.
+  std::atomic<bool> cancelled{false};
+  struct Drain {
+    std::deque<InFlight>* jobs;
+    std::atomic<bool>* cancelled;
+    ~Drain() {
+      cancelled->store(true);
+      for (InFlight& f : *jobs)
+        if (f.result.valid()) f.result.wait();
+    }
+  } drain{&in_flight, &cancelled};
   auto merge_oldest = [&] {
     InFlight& f = in_flight.front();
     MergeBlockResult(f.result.get(), f.own_lo_s, f.own_hi_s, f.last, signals);
@@ -851,9 +746,8 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   reader->Skip(i0);
   // Where the blocks are detected on this thread (one block, or one thread), the memory for a
   // block's samples and arrays is mapped at once in huge pages (core/huge_pages.hpp), once: freed,
-  // it serves the next block. Where they are detected concurrently (BlockWorkers), each worker
-  // maps its arrays at its first block; mapping the samples of the blocks read ahead too changed
-  // nothing measurable (10 minutes, two threads: 0.596-0.602 s with 0 to 4 blocks mapped).
+  // it serves the next block. Where they are detected concurrently, each thread maps its arrays
+  // at its first block.
   //
   // A recording of one block detected with several threads has that memory (its samples' and
   // its arrays') mapped on another thread while this one reads it, and the detector's FFTW plans
@@ -866,9 +760,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
       static_cast<std::size_t>(std::min(cap, i1 - i0)) * channels * sizeof(float);
   std::optional<HeapPrefault> ahead;
   if (one_block && threads > 1) {
-    OnsetOptions oo = OnsetOptionsOf(options);
-    oo.available_threads = nullptr;
-    oo.pool = nullptr;
+    const OnsetOptions oo = OnsetOptionsOf(options);
     const double analysis_rate = rate / DecimationFactor(rate);
     ahead.emplace(block_bytes,
                   BlockArrayBytes(static_cast<std::size_t>(i1 - i0), rate, choices, options),
@@ -914,39 +806,28 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     }
     buf_start = next;
     own_lo_s = b.own_hi_s;
-    if (first && b.last) {  // one block: on this thread, with all the threads for its stages
-      // The stages' threads kept running from one stage to the next (WorkerPool).
-      DetectOptions stages = options;
-      std::optional<WorkerPool> stage_pool;
-      if (threads > 1 && stages.pool == nullptr) {
-        stage_pool.emplace(threads);
-        stages.pool = &*stage_pool;
-      }
-      MergeBlockResult(DetectBlock(b, rate, choices, stages, !ahead), b.own_lo_s, b.own_hi_s, true,
-                       signals);
-      break;
-    }
     const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
     const bool last = b.last;
-    if (threads > 1) {
-      if (!workers) {
-        workers = std::make_unique<BlockWorkers>(threads, [&](const Block& blk, bool first_here) {
-          return DetectBlock(blk, rate, choices, per_block, first_here);
-        });
-        pool = workers.get();
-      }
-      in_flight.push_back({lo_s, hi_s, last, workers->Submit(std::move(b))});
-      if (last) all_handed_out = true;
-      while (static_cast<int>(in_flight.size()) > threads) merge_oldest();
+    if ((first && last) || threads == 1) {  // on this thread, with all the threads for its stages
+      MergeBlockResult(DetectBlock(b, rate, choices, per_block, here && !ahead), lo_s, hi_s, last,
+                       signals);
     } else {
-      MergeBlockResult(DetectBlock(b, rate, choices, per_block, here), lo_s, hi_s, last, signals);
+      in_flight.push_back({lo_s, hi_s, last, Async(threads, [&, b = std::move(b)] {
+                             // Each thread maps its arrays at its first block (DetectBlock's
+                             // prefault).
+                             thread_local bool mapped = false;
+                             if (cancelled.load()) return BlockResult{};
+                             const bool prefault = !mapped;
+                             mapped = true;
+                             return DetectBlock(b, rate, choices, per_block, prefault);
+                           })});
+      while (static_cast<int>(in_flight.size()) > threads) merge_oldest();
     }
     if (last) break;
   }
   reader->Skip(std::numeric_limits<std::int64_t>::max());
   while (!in_flight.empty()) merge_oldest();
 }
-
 }  // namespace
 
 DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) {

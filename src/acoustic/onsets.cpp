@@ -44,7 +44,7 @@ double Median(std::vector<double> v) {
 // counts are integers: how the values are split among the threads does not change them.
 constexpr int kMedianKeyShift = 48;  // 16 top bits: 1/16 octave per bucket
 constexpr std::size_t kMedianBuckets = std::size_t{1} << (64 - kMedianKeyShift);
-double MedianOfNonNegative(const double* v, std::size_t n, int threads, WorkerPool* pool) {
+double MedianOfNonNegative(const double* v, std::size_t n, int threads) {
   auto key = [](double x) {
     const double y = x + 0.0;  // -0 -> +0
     std::uint64_t k;
@@ -54,15 +54,12 @@ double MedianOfNonNegative(const double* v, std::size_t n, int threads, WorkerPo
   const std::size_t parts = std::clamp<std::size_t>(n / 16384, 1, std::max(1, threads));
   const std::size_t part = (n + parts - 1) / parts;
   std::vector<std::vector<std::uint32_t>> counts(parts);
-  ParallelFor(
-      threads, parts,
-      [&](std::size_t p) {
-        std::vector<std::uint32_t>& c = counts[p];
-        c.assign(kMedianBuckets, 0);
-        for (std::size_t i = p * part; i < std::min(n, (p + 1) * part); ++i)
-          if (v[i] >= 0.0) ++c[key(v[i]) >> kMedianKeyShift];
-      },
-      pool);
+  ParallelFor(threads, parts, [&](std::size_t p) {
+    std::vector<std::uint32_t>& c = counts[p];
+    c.assign(kMedianBuckets, 0);
+    for (std::size_t i = p * part; i < std::min(n, (p + 1) * part); ++i)
+      if (v[i] >= 0.0) ++c[key(v[i]) >> kMedianKeyShift];
+  });
   std::vector<std::uint64_t> total(kMedianBuckets, 0);
   std::uint64_t m = 0;
   for (const std::vector<std::uint32_t>& c : counts)
@@ -347,7 +344,7 @@ void PredictionErrorBlock(const float* x, const float* af, std::size_t taps, std
 
 }  // namespace
 
-std::vector<float> Whiten(const std::vector<float>& x, int order, int threads, WorkerPool* pool) {
+std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   const std::size_t n = x.size();
   if (order <= 0 || n <= static_cast<std::size_t>(order) * 4) return x;
   // Autocorrelation of the whole signal, r[l] = sum_i x[i] x[i - l]. All of it, so that the
@@ -368,14 +365,11 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads, W
   const std::size_t lags = static_cast<std::size_t>(order) + 1;
   const std::size_t nblocks = (n + block - 1) / block;
   std::vector<double> partial(nblocks * lags, 0.0);
-  ParallelForGroups(
-      threads, nblocks, kWhitenGroup,
-      [&](std::size_t b0, std::size_t b1) {
-        for (std::size_t bi = b0; bi < b1; ++bi)
-          BlockAutocorrelation(x.data(), bi * block, std::min(n, bi * block + block), lags,
-                               partial.data() + bi * lags);
-      },
-      pool);
+  ParallelForGroups(threads, nblocks, kWhitenGroup, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t bi = b0; bi < b1; ++bi)
+      BlockAutocorrelation(x.data(), bi * block, std::min(n, bi * block + block), lags,
+                           partial.data() + bi * lags);
+  });
   std::vector<double> r(lags, 0.0);
   for (std::size_t bi = 0; bi < nblocks; ++bi)
     for (std::size_t l = 0; l < lags; ++l)
@@ -394,14 +388,11 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads, W
   for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
   const std::size_t blk = 2048;
   const std::size_t fblocks = (n + blk - 1) / blk;
-  ParallelForGroups(
-      threads, fblocks, kWhitenGroup,
-      [&](std::size_t b0, std::size_t b1) {
-        for (std::size_t fb = b0; fb < b1; ++fb)
-          PredictionErrorBlock(x.data(), af.data(), af.size(), fb * blk,
-                               std::min(n, fb * blk + blk), out.data());
-      },
-      pool);
+  ParallelForGroups(threads, fblocks, kWhitenGroup, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t fb = b0; fb < b1; ++fb)
+      PredictionErrorBlock(x.data(), af.data(), af.size(), fb * blk, std::min(n, fb * blk + blk),
+                           out.data());
+  });
   return out;
 }
 
@@ -640,9 +631,7 @@ OnsetDetector::OnsetDetector(const OnsetOptions& options, double rate_hz)
 
 OnsetDetector::~OnsetDetector() = default;
 
-int OnsetDetector::Threads() const {
-  return StageThreads(options_.threads, options_.available_threads);
-}
+int OnsetDetector::Threads() const { return ResolveThreads(options_.threads); }
 
 int OnsetDetector::HopSamples(const OnsetOptions& options, double rate_hz) {
   const double hop_target = options.hop_s > 0.0 ? options.hop_s * rate_hz : 0.00033 * rate_hz;
@@ -682,7 +671,7 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   res.window_samples = window_;
   res.rate_hz = rate_hz_;
   res.sigma_floor_s = std::max(options_.sigma_floor_s, options_.sigma_floor_samples / rate_hz_);
-  res.whitened = Whiten(x, options_.lpc_order, Threads(), options_.pool);
+  res.whitened = Whiten(x, options_.lpc_order, Threads());
   res.noise_rms = RobustRms(res.whitened);
   const std::size_t n = res.whitened.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
@@ -708,12 +697,9 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
     window_hi.push_back(static_cast<long>(centre.back() + post));
   }
   std::vector<Impact> refined(peaks.size());
-  ParallelForGroups(
-      Threads(), peaks.size(), kRefinePart,
-      [&](std::size_t i0, std::size_t i1) {
-        for (std::size_t i = i0; i < i1; ++i) refined[i] = Refine(x, res, centre[i], false);
-      },
-      options_.pool);
+  ParallelForGroups(Threads(), peaks.size(), kRefinePart, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i) refined[i] = Refine(x, res, centre[i], false);
+  });
   res.onsets = std::move(refined);
   // 5. Template pass.
   TemplatePass(x, window_lo, window_hi, &res);
@@ -820,8 +806,7 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   // Each thread takes the next chunk until none is left, with its own arrays for them.
   std::atomic<std::size_t> next_chunk{0};
   ParallelFor(
-      threads, std::min<std::size_t>(chunks, static_cast<std::size_t>(threads)),
-      [&](std::size_t) {
+      threads, std::min<std::size_t>(chunks, static_cast<std::size_t>(threads)), [&](std::size_t) {
         FftArrays a(nw);
         Buffer<double> power, scratch, ref;  // written before they are read
         power.Allocate((std::min(frames, chunk) + warm) * bins);
@@ -884,12 +869,11 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
             ++t;
           }
         }
-      },
-      options_.pool);
+      });
   // Floor of the denominator: the median reference power (the background), so silence and
   // digital zeros do not turn tiny increases into large ratios.
   // (-1 marks a frame whose reference is not full.)
-  double floor_power = MedianOfNonNegative(den.data.get(), frames, threads, options_.pool);
+  double floor_power = MedianOfNonNegative(den.data.get(), frames, threads);
   if (!(floor_power > 0.0)) {
     double mx = 0.0;
     for (std::size_t t = 0; t < frames; ++t)
@@ -904,22 +888,16 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   ReserveHugePages(&novelty, frames);
   novelty.resize(frames, 0.0);
   const std::size_t group = std::max<std::size_t>(kSpectraChunk, frames / (4 * threads) + 1);
-  ParallelForGroups(
-      threads, frames, group,
-      [&](std::size_t t0, std::size_t t1) {
-        for (std::size_t t = t0; t < t1; ++t) {
-          const double d = den[t] < 0.0 ? floor_power : den[t];
-          raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (d + floor_power));
-        }
-      },
-      options_.pool);
-  ParallelForGroups(
-      threads, frames, group,
-      [&](std::size_t t0, std::size_t t1) {
-        for (std::size_t t = std::max<std::size_t>(t0, 1); t < std::min(t1, frames - 1); ++t)
-          novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
-      },
-      options_.pool);
+  ParallelForGroups(threads, frames, group, [&](std::size_t t0, std::size_t t1) {
+    for (std::size_t t = t0; t < t1; ++t) {
+      const double d = den[t] < 0.0 ? floor_power : den[t];
+      raw_db[t] = 10.0 * std::log10(1.0 + num[t] / (d + floor_power));
+    }
+  });
+  ParallelForGroups(threads, frames, group, [&](std::size_t t0, std::size_t t1) {
+    for (std::size_t t = std::max<std::size_t>(t0, 1); t < std::min(t1, frames - 1); ++t)
+      novelty[t] = (raw_db[t - 1] + raw_db[t] + raw_db[t + 1]) / 3.0;
+  });
   return novelty;
 }
 
@@ -1029,31 +1007,25 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
   const std::size_t nblk = (frames + blk - 1) / blk;
   std::vector<double> blk_thr(nblk);
   // Each block's median and MAD are independent: groups of kThresholdPart blocks per thread task.
-  ParallelForGroups(
-      Threads(), nblk, kThresholdPart,
-      [&](std::size_t b0, std::size_t b1) {
-        SlidingSample window;
-        for (std::size_t b = b0; b < b1; ++b)
-          blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
-      },
-      options_.pool);
+  ParallelForGroups(Threads(), nblk, kThresholdPart, [&](std::size_t b0, std::size_t b1) {
+    SlidingSample window;
+    for (std::size_t b = b0; b < b1; ++b)
+      blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
+  });
   std::vector<double> thr;
   ReserveHugePages(&thr, frames);
   thr.resize(frames);
-  ParallelForGroups(
-      Threads(), frames, kSpectraChunk,
-      [&](std::size_t t0, std::size_t t1) {
-        for (std::size_t t = t0; t < t1; ++t) {
-          const double pos =
-              (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
-          const double cl = std::clamp(pos, 0.0, static_cast<double>(nblk - 1));
-          const std::size_t b0 = static_cast<std::size_t>(cl);
-          const std::size_t b1 = std::min(nblk - 1, b0 + 1);
-          const double fr = cl - static_cast<double>(b0);
-          thr[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
-        }
-      },
-      options_.pool);
+  ParallelForGroups(Threads(), frames, kSpectraChunk, [&](std::size_t t0, std::size_t t1) {
+    for (std::size_t t = t0; t < t1; ++t) {
+      const double pos =
+          (static_cast<double>(t) - static_cast<double>(blk) / 2.0) / static_cast<double>(blk);
+      const double cl = std::clamp(pos, 0.0, static_cast<double>(nblk - 1));
+      const std::size_t b0 = static_cast<std::size_t>(cl);
+      const std::size_t b1 = std::min(nblk - 1, b0 + 1);
+      const double fr = cl - static_cast<double>(b0);
+      thr[t] = blk_thr[b0] * (1.0 - fr) + blk_thr[b1] * fr;
+    }
+  });
   return thr;
 }
 
@@ -1232,7 +1204,6 @@ struct OnsetDetector::NccChunks {
   const std::vector<double>& h;
   double hh;
   int threads;
-  WorkerPool* pool;
   FftArrays tf;  // the template's spectrum
   struct Chunk {
     long index = -1;
@@ -1243,13 +1214,12 @@ struct OnsetDetector::NccChunks {
   unsigned long clock = 0;
 
   NccChunks(const Correlator& c, const std::vector<float>& whitened, const std::vector<double>& tpl,
-            double tpl_energy, int n_threads, WorkerPool* workers)
+            double tpl_energy, int n_threads)
       : corr(c),
         w(whitened),
         h(tpl),
         hh(tpl_energy),
         threads(n_threads),
-        pool(workers),
         tf(static_cast<std::size_t>(c.n)) {
     corr.TemplateSpectrum(h, &tf);
   }
@@ -1287,25 +1257,22 @@ struct OnsetDetector::NccChunks {
     const std::size_t etasks = (s1 - s0 + kEnergyPart - 1) / kEnergyPart;
     float* xc = c->xc.data.get();
     float* ww = c->ww.data.get();
-    ParallelFor(
-        threads, ctasks + etasks,
-        [&](std::size_t task) {
-          if (task < ctasks) {
-            FftArrays a(static_cast<std::size_t>(corr.n));
-            corr.CorrelateBlocks(w, tf.spec, tl, lo, hi, task * kCorrelatePart,
-                                 std::min(blocks, (task + 1) * kCorrelatePart), xc, &a);
-            return;
-          }
-          const std::size_t g = task - ctasks;
-          std::size_t b = (s0 + g * kEnergyPart) * kEnergyRestart;
-          const std::size_t end = std::min(s1, s0 + (g + 1) * kEnergyPart) * kEnergyRestart;
-          for (; b + 4 * kEnergyRestart <= end && b + 4 * kEnergyRestart + tl <= n + 1;
-               b += 4 * kEnergyRestart)
-            RunningEnergy4(w, tl, b, lo, ww);
-          for (; b < end; b += kEnergyRestart)
-            RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), lo, ww);
-        },
-        pool);
+    ParallelFor(threads, ctasks + etasks, [&](std::size_t task) {
+      if (task < ctasks) {
+        FftArrays a(static_cast<std::size_t>(corr.n));
+        corr.CorrelateBlocks(w, tf.spec, tl, lo, hi, task * kCorrelatePart,
+                             std::min(blocks, (task + 1) * kCorrelatePart), xc, &a);
+        return;
+      }
+      const std::size_t g = task - ctasks;
+      std::size_t b = (s0 + g * kEnergyPart) * kEnergyRestart;
+      const std::size_t end = std::min(s1, s0 + (g + 1) * kEnergyPart) * kEnergyRestart;
+      for (; b + 4 * kEnergyRestart <= end && b + 4 * kEnergyRestart + tl <= n + 1;
+           b += 4 * kEnergyRestart)
+        RunningEnergy4(w, tl, b, lo, ww);
+      for (; b < end; b += kEnergyRestart)
+        RunningEnergy(w, tl, b, std::min(n, b + kEnergyRestart), lo, ww);
+    });
   }
 
   double Ncc(std::size_t i) {
@@ -1519,7 +1486,7 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
   if (res->onsets.empty()) return;
   TemplateMatch m;
   if (!BuildTemplate(res, &m)) return;
-  NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh, Threads(), options_.pool);
+  NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh, Threads());
   auto live = [&](long l) { return chunks.Ncc(static_cast<std::size_t>(l)); };
   const long n = m.n;
   const long maxlag = static_cast<long>(0.0003 * rate_hz_) + 1;

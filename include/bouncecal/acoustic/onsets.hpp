@@ -59,12 +59,6 @@ struct OnsetOptions {
   // Threads Detect may use (0: hardware concurrency, core/parallel.hpp); the onsets do not depend
   // on the count. One OnsetDetector may serve several threads' Detect calls at once.
   int threads = 1;
-  // When set, each stage uses at most this many of them (asked as it starts,
-  // core/parallel.hpp StageThreads). Not part of the result.
-  std::function<int()> available_threads;
-  // When set, the threads are this pool's (core/parallel.hpp WorkerPool: kept running between
-  // the stages) while it is free. Not part of the result.
-  WorkerPool* pool = nullptr;
   bool IsValid(std::string* error) const;
 };
 
@@ -103,8 +97,7 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 // does not depend on where x starts beyond the audio cut off) and returns the prediction error
 // (same length; the first `order` samples use the available past). `threads` share the work;
 // the result does not depend on their number.
-std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1,
-                          WorkerPool* pool = nullptr);
+std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1);
 
 // Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
 // hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).
@@ -167,7 +160,7 @@ class OnsetDetector {
   static std::size_t WorkingBytes(const OnsetOptions& options, double rate_hz, std::size_t samples);
 
  private:
-  // The threads the stage starting now may use (OnsetOptions::threads, available_threads).
+  // The threads a stage may use (OnsetOptions::threads resolved).
   int Threads() const;
   // The stages of Detect, in order.
   OnsetResult DetectRefined(const std::vector<float>& samples) const;

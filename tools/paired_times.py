@@ -33,6 +33,7 @@ def commands(work, long_file):
         ("analyze", ["analyze", REC, "--scene", SCENE, "--json"]),
         ("calibrate", ["calibrate", REC, "--scene", SCENE, "--json"]),
         ("simulate", ["simulate", "--scene", SCENE, "--json"]),
+        ("simulate 10 000 impacts", ["simulate", "--law", "hunt-crossley-ln", "--json"]),
         ("report", ["report", REC, "--scene", SCENE, "-o", out, "--force"]),
         ("--version", ["--version"]),
     ]

@@ -16,7 +16,6 @@
 #include <memory>
 #include <optional>
 
-#include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/acoustic/plausibility.hpp"
@@ -637,27 +636,12 @@ double MaxAbs(const float* x, std::size_t n) {
   return static_cast<double>(std::max(0.0f, std::max(-lo, hi)));  // +0 for an all-zero block
 }
 
-// The bytes of the arrays of one signal's detection in a block of n frames (the signals are
-// detected one after another and share them): the mix, the decimated signal, the detector's
-// working set.
-std::size_t BlockArrayBytes(std::size_t n, double rate, const std::vector<int>& choices,
-                            const DetectOptions& options) {
-  const int factor = DecimationFactor(rate);
-  const std::size_t analysed = n / static_cast<std::size_t>(factor) + 1;
-  const bool mixes = std::any_of(choices.begin(), choices.end(), [](int c) { return c < 0; });
-  return (mixes ? n * sizeof(float) : 0) + (factor > 1 ? analysed * sizeof(float) : 0) +
-         OnsetDetector::WorkingBytes(OnsetOptionsOf(options), rate / factor, analysed);
-}
-
 // Every candidate signal of one block through DetectInSignal (at most at kMaxAnalysisRateHz).
-// `prefault`: map the memory of its arrays first, on this thread's heap, in huge pages
-// (BlockArrayBytes, core/huge_pages.hpp).
 BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& choices,
-                        const DetectOptions& options, bool prefault) {
+                        const DetectOptions& options) {
   BlockResult r;
   const int factor = DecimationFactor(rate);
   const double offset_s = static_cast<double>(b.start) / rate;
-  if (prefault) PrefaultHeap(BlockArrayBytes(b.channels.front().size(), rate, choices, options));
   std::vector<float> mix, xd;
   for (int choice : choices) {
     // A channel is detected on the block's own samples; the mix is made one signal at a time.
@@ -744,36 +728,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     in_flight.pop_front();
   };
   reader->Skip(i0);
-  // Where the blocks are detected on this thread (one block, or one thread), the memory for a
-  // block's samples and arrays is mapped at once in huge pages (core/huge_pages.hpp), once: freed,
-  // it serves the next block. Where they are detected concurrently, each thread maps its arrays
-  // at its first block.
-  //
-  // A recording of one block detected with several threads has that memory (its samples' and
-  // its arrays') mapped on another thread while this one reads it, and the detector's FFTW plans
-  // made there too: FFTW keeps a plan's solution, so that the detector this thread constructs
-  // after the reading plans again in microseconds (~3 ms of planning for a first detector).
-  const std::size_t channels = static_cast<std::size_t>(reader->info().channels);
-  const bool one_block = i1 - i0 <= cap;
-  const bool here = one_block || threads == 1;
-  const std::size_t block_bytes =
-      static_cast<std::size_t>(std::min(cap, i1 - i0)) * channels * sizeof(float);
-  std::optional<HeapPrefault> ahead;
-  if (one_block && threads > 1) {
-    const OnsetOptions oo = OnsetOptionsOf(options);
-    const double analysis_rate = rate / DecimationFactor(rate);
-    ahead.emplace(block_bytes,
-                  BlockArrayBytes(static_cast<std::size_t>(i1 - i0), rate, choices, options),
-                  [oo, analysis_rate] {
-                    try {
-                      const OnsetDetector plans(oo, analysis_rate);
-                    } catch (...) {  // the detection itself reports what is wrong
-                    }
-                  });
-  } else if (here) {
-    PrefaultHeap(block_bytes);
-  }
-  std::vector<std::vector<float>> buf(channels);
+  std::vector<std::vector<float>> buf(static_cast<std::size_t>(reader->info().channels));
   std::int64_t buf_start = i0;
   double own_lo_s = -std::numeric_limits<double>::infinity();
   for (bool first = true;; first = false) {
@@ -809,18 +764,12 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
     const bool last = b.last;
     if ((first && last) || threads == 1) {  // on this thread, with all the threads for its stages
-      MergeBlockResult(DetectBlock(b, rate, choices, per_block, here && !ahead), lo_s, hi_s, last,
-                       signals);
+      MergeBlockResult(DetectBlock(b, rate, choices, per_block), lo_s, hi_s, last, signals);
     } else {
-      in_flight.push_back({lo_s, hi_s, last, Async(threads, [&, b = std::move(b)] {
-                             // Each thread maps its arrays at its first block (DetectBlock's
-                             // prefault).
-                             thread_local bool mapped = false;
-                             if (cancelled.load()) return BlockResult{};
-                             const bool prefault = !mapped;
-                             mapped = true;
-                             return DetectBlock(b, rate, choices, per_block, prefault);
-                           })});
+      auto job = [&, b = std::move(b)] {
+        return cancelled.load() ? BlockResult{} : DetectBlock(b, rate, choices, per_block);
+      };
+      in_flight.push_back({lo_s, hi_s, last, Async(threads, std::move(job))});
       while (static_cast<int>(in_flight.size()) > threads) merge_oldest();
     }
     if (last) break;
@@ -828,6 +777,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   reader->Skip(std::numeric_limits<std::int64_t>::max());
   while (!in_flight.empty()) merge_oldest();
 }
+
 }  // namespace
 
 DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) {

@@ -17,7 +17,6 @@
 #include <numbers>
 #include <sstream>
 
-#include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
@@ -105,7 +104,6 @@ struct Buffer {
   std::size_t n = 0;
   void Allocate(std::size_t size) {
     data.reset(new T[size]);
-    AdviseHugePages(data.get(), size * sizeof(T));
     n = size;
   }
   std::size_t size() const { return n; }
@@ -381,9 +379,7 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   const std::vector<double> a = LevinsonDurbin(r, order);
   // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block);
   // every output block depends on x only, so groups of blocks run on the threads.
-  std::vector<float> out;
-  ReserveHugePages(&out, n);
-  out.assign(x.begin(), x.end());
+  std::vector<float> out(x);
   std::vector<float> af(a.size());
   for (std::size_t j = 0; j < a.size(); ++j) af[j] = static_cast<float>(a[j]);
   const std::size_t blk = 2048;
@@ -638,19 +634,6 @@ int OnsetDetector::HopSamples(const OnsetOptions& options, double rate_hz) {
   return std::max(1, NearestPowerOfTwo(hop_target));
 }
 
-std::size_t OnsetDetector::WorkingBytes(const OnsetOptions& options, double rate_hz,
-                                        std::size_t samples) {
-  const std::size_t hop = static_cast<std::size_t>(HopSamples(options, rate_hz));
-  const std::size_t frames = samples / hop + 1;
-  const std::size_t bins = std::max<std::size_t>(16, 4 * hop) / 2 + 1;  // the window's
-  // The whitened signal (float); per frame the novelty's num, den and dB values, the novelty
-  // and its threshold (double); this thread's power rows of a novelty chunk; the template
-  // correlation's kept chunks, xc and ww (float).
-  return samples * sizeof(float) + frames * 5 * sizeof(double) +
-         (std::min(frames, SpectraChunkFrames(bins)) + 4 + kRefFrames) * bins * sizeof(double) +
-         std::min(samples, kNccChunksKept * kNccChunk) * 2 * sizeof(float);
-}
-
 void CoarsenToHop(Impact* impact, int hop_samples, double rate_hz) {
   const double hop = static_cast<double>(std::max(1, hop_samples));
   const double frame = std::floor(impact->time_s * rate_hz / hop);
@@ -884,9 +867,7 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
   // one: a 3-frame mean of the flux (in dB) separates them better than single frames.
   Buffer<double> raw_db;
   raw_db.Allocate(frames);
-  std::vector<double> novelty;
-  ReserveHugePages(&novelty, frames);
-  novelty.resize(frames, 0.0);
+  std::vector<double> novelty(frames, 0.0);
   const std::size_t group = std::max<std::size_t>(kSpectraChunk, frames / (4 * threads) + 1);
   ParallelForGroups(threads, frames, group, [&](std::size_t t0, std::size_t t1) {
     for (std::size_t t = t0; t < t1; ++t) {
@@ -1012,9 +993,7 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) con
     for (std::size_t b = b0; b < b1; ++b)
       blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
   });
-  std::vector<double> thr;
-  ReserveHugePages(&thr, frames);
-  thr.resize(frames);
+  std::vector<double> thr(frames);
   ParallelForGroups(Threads(), frames, kSpectraChunk, [&](std::size_t t0, std::size_t t1) {
     for (std::size_t t = t0; t < t1; ++t) {
       const double pos =

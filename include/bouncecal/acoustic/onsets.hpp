@@ -154,10 +154,6 @@ class OnsetDetector {
   int window_samples() const { return window_; }
   // The STFT hop a detector with these options uses at rate_hz (samples, a power of two).
   static int HopSamples(const OnsetOptions& options, double rate_hz);
-  // Heap bytes Detect allocates at most at once for a signal of `samples` (its whitened copy,
-  // per-frame arrays, the template correlation's chunks; not the samples themselves): what a
-  // caller may have PrefaultHeap (src/core/huge_pages.hpp) map beforehand.
-  static std::size_t WorkingBytes(const OnsetOptions& options, double rate_hz, std::size_t samples);
 
  private:
   // The threads a stage may use (OnsetOptions::threads resolved).

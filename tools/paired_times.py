@@ -76,7 +76,7 @@ def main():
     ap.add_argument("--b", required=True, help="the build after")
     ap.add_argument("--runs", type=int, default=21, help="runs of each build per command")
     ap.add_argument("--long", action="store_true", help="also detect a 10-minute recording")
-    ap.add_argument("--only", default="", help="comma-separated command names to run")
+    ap.add_argument("--only", default="", help="command names to run, separated by ;")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as work:
         long_file = make_long(a.a, work) if a.long else None
@@ -84,7 +84,7 @@ def main():
         print()
         print("| command | A wall (ms) | B wall (ms) | B / A (paired) | A CPU (ms) | B CPU (ms) |")
         print("|---|---|---|---|---|---|")
-        only = set(filter(None, a.only.split(",")))
+        only = set(filter(None, a.only.split(";")))
         for name, args in commands(work, long_file):
             if only and name not in only:
                 continue

@@ -20,7 +20,6 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
-#include "power_spectra.hpp"
 
 namespace bouncecal {
 namespace {
@@ -523,8 +522,6 @@ struct OnsetDetector::Fft {
   fftw_complex* out = nullptr;
   fftw_plan plan = nullptr;
   std::vector<double> window;
-  // The novelty's transforms four frames at a time where the size allows (power_spectra.hpp).
-  std::unique_ptr<PowerSpectra4> four;
   explicit Fft(int size) : n(size) {
     std::lock_guard<std::mutex> lock(PlannerMutex());
     in = static_cast<double*>(fftw_malloc(sizeof(double) * static_cast<std::size_t>(n)));
@@ -535,7 +532,6 @@ struct OnsetDetector::Fft {
     for (int i = 0; i < n; ++i)  // periodic Hann
       window[static_cast<std::size_t>(i)] =
           0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * i / static_cast<double>(n));
-    if (PowerSpectra4::Supports(n)) four = std::make_unique<PowerSpectra4>(n, window);
   }
   ~Fft() {
     std::lock_guard<std::mutex> lock(PlannerMutex());
@@ -798,23 +794,10 @@ std::vector<double> OnsetDetector::Novelty(const std::vector<float>& w) const {
         for (std::size_t ch = next_chunk++; ch < chunks; ch = next_chunk++) {
           const std::size_t c0 = ch * chunk, c1 = std::min(frames, c0 + chunk);
           const std::size_t p0 = c0 >= warm ? c0 - warm : 0;  // first power row of this chunk
-          for (std::size_t t = p0; t < c1;) {
-            if (f.four) {  // four frames a time; the last ones repeated to fill the lanes
-              const float* src[4];
-              double* out[4];
-              for (std::size_t j = 0; j < 4; ++j) {
-                const std::size_t tj = std::min(t + j, c1 - 1);
-                src[j] = w.data() + tj * hop;
-                out[j] = tj == t + j ? power.data.get() + (tj - p0) * bins : scratch.data.get();
-              }
-              f.four->Compute(src, out);
-              t += 4;
-              continue;
-            }
+          for (std::size_t t = p0; t < c1; ++t) {
             Windowed(w.data() + t * hop, f.window.data(), nw, a.real);
             fftw_execute_dft_r2c(f.plan, a.real, a.spec);
             PowerSpectrum(a.spec, bins, power.data.get() + (t - p0) * bins);
-            ++t;
           }
           auto row = [&](std::size_t frame) { return power.data.get() + (frame - p0) * bins; };
           // The reference at the chunk's first frame: its frames summed in frame order (as sliding

@@ -5,10 +5,9 @@
 // detector therefore works on the *whitened* signal: one linear predictor (order ~32) fitted to
 // the whole recording (Levinson-Durbin on the autocorrelation) predicts the stationary ringing
 // away; its prediction error keeps the clicks. On the whitened signal:
-//   1. a short-hop STFT (four frames per transform, src/acoustic/power_spectra.hpp; FFTW past
-//      256 points, plans made once in the constructor and reused) gives a relative spectral
-//      flux: the half-wave rectified per-bin power increase divided by the previous frame's
-//      power (level-independent), in dB;
+//   1. a short-hop STFT (FFTW, plans made once in the constructor and reused) gives a relative
+//      spectral flux: the half-wave rectified per-bin power increase divided by the previous
+//      frame's power (level-independent), in dB;
 //   2. an adaptive threshold (running median + k * MAD) and peak picking with a minimum gap give
 //      coarse onsets;
 //   3. each onset is refined on the waveform with an AIC change-point picker (Maeda 1985;

@@ -157,18 +157,23 @@ class OnsetDetector {
  private:
   // The threads a stage may use (OnsetOptions::threads resolved).
   int Threads() const;
-  // The stages of Detect, in order.
+  // The stages of Detect, in order, each in a file of its own: whitening (Whiten,
+  // whitening.cpp), then
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
-  std::vector<double> Novelty(const std::vector<float>& whitened) const;    // 1. flux, dB
-  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // 2. adaptive
+  std::vector<double> Novelty(const std::vector<float>& whitened) const;  // flux, dB (novelty.cpp)
+  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // adaptive (peaks.cpp)
   double BlockThreshold(const std::vector<double>& novelty, std::size_t centre, std::size_t win,
                         SlidingSample* window) const;
   std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
-                                 const std::vector<double>& threshold) const;  // 3. frames
-  // 4. AIC refinement and measures at a coarse onset sample.
+                                 const std::vector<double>& threshold) const;  // frames (peaks.cpp)
+  // AIC refinement and measures at each peak's coarse onset (aic.cpp); *window_lo, *window_hi:
+  // the onset samples each one's AIC window spans.
+  std::vector<Impact> RefinePeaks(const std::vector<float>& samples,
+                                  const std::vector<std::size_t>& peaks, const OnsetResult& res,
+                                  std::vector<long>* window_lo, std::vector<long>* window_hi) const;
   Impact Refine(const std::vector<float>& samples, const OnsetResult& res, std::size_t centre,
                 bool tight) const;
-  // 5. Template pass: build, score, time the clear matches, search blind.
+  // Template pass: build, score, time the clear matches, search blind (template_search.cpp).
   struct TemplateMatch;
   struct NccWindow;
   struct NccChunks;

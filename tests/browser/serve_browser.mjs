@@ -81,7 +81,7 @@ async function recordTest(server, dir, attempt) {
     }
     assert.ok(state.analysis, state.status);
     const detect = cli(['detect', wav, '--json']);
-    const main = detect.impacts;  // the main sequence's
+    const main = detect.sequences[detect.chosen_sequences[0]].impacts;  // the main sequence's
     // The live session's longest sequence against detect's main sequence.
     const bySeq = new Map();
     for (const i of state.live) bySeq.set(i.sequence, [...(bySeq.get(i.sequence) || []), i]);

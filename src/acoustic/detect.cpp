@@ -947,6 +947,37 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   while (!in_flight.empty()) merge_oldest();
 }
 
+// The recording's own warnings: the reader's (truncated_stream), clipping, a lossy codec.
+void RecordingWarnings(const AudioReader& reader, const DetectionResult& res,
+                       std::vector<Warning>* out) {
+  *out = reader.warnings();
+  for (const ClippingReport& c : res.clipping)
+    if (c.clipped())
+      out->push_back({"clipped",
+                      "channel " + std::to_string(c.channel) + " is clipped (" +
+                          std::to_string(c.clipped_samples) +
+                          " samples at its extreme value); onsets are still usable, "
+                          "amplitudes are not",
+                      -1});
+  if (res.audio.lossy) {
+    const double delay_ms =
+        1e3 * static_cast<double>(res.audio.codec_delay_samples) / res.audio.sample_rate_hz;
+    out->push_back(
+        {"codec_delay",
+         "decoded from lossy " + res.audio.subtype + " (" + res.audio.format + "): " +
+             (res.audio.codec_delay_samples > 0
+                  ? std::to_string(res.audio.codec_delay_samples) + " priming samples (" +
+                        Fmt("%.2f", delay_ms) + " ms) " +
+                        (res.audio.codec_delay_trimmed
+                             ? "were trimmed as the file says"
+                             : "are declared but were not trimmed: times are late by that much")
+                  : std::string("no codec delay stated")) +
+             "; lossy coding smears onsets (pre-echo), so a constant offset of up to a few ms "
+             "is possible (intervals are not)",
+         -1});
+  }
+}
+
 }  // namespace
 
 DetectionResult DetectImpacts(const Audio& audio, const DetectOptions& options) {
@@ -971,27 +1002,29 @@ DetectionResult DetectImpacts(AudioReader& reader, const DetectOptions& options)
   const AudioInfo& info = reader.info();
   const std::string& path = info.path;
   DetectionResult res;
-  res.audio = info;
-  if (info.channels < 1 || info.frames <= 0)
+  // A stream whose header gives no length is read to its end: its length is known after 3.
+  const bool length_known = info.frames != kUnknownFrames;
+  if (info.channels < 1 || (length_known && info.frames <= 0))
     throw Error(ErrorCode::kNotAudio, path + ": no samples");
   const double rate = info.sample_rate_hz;
-  const std::int64_t frames = info.frames;
-  const double duration_s = static_cast<double>(frames) / rate;
+  const std::int64_t frames = length_known ? info.frames : std::numeric_limits<std::int64_t>::max();
 
   // 1. Window.
   const std::string window = "[" + Fmt("%g", options.start_s) + ", " +
                              (options.end_s ? Fmt("%g", *options.end_s) : std::string("end")) +
                              ") s";
-  if (options.start_s >= duration_s)
-    throw Error(ErrorCode::kNoBounces, path + ": the window " + window +
-                                           " starts after the recording ends (" +
-                                           Fmt("%.3f", duration_s) + " s)");
+  auto check_start = [&] {
+    const double duration_s = reader.info().duration_s();
+    if (options.start_s >= duration_s)
+      throw Error(ErrorCode::kNoBounces, path + ": the window " + window +
+                                             " starts after the recording ends (" +
+                                             Fmt("%.3f", duration_s) + " s)");
+  };
+  if (length_known) check_start();
   const std::int64_t i0 = static_cast<std::int64_t>(std::ceil(options.start_s * rate));
-  const std::int64_t i1 =
+  std::int64_t i1 =
       options.end_s ? std::min(frames, static_cast<std::int64_t>(std::ceil(*options.end_s * rate)))
                     : frames;
-  res.start_s = static_cast<double>(i0) / rate;
-  res.end_s = static_cast<double>(i1) / rate;
 
   // 2. Which signals to try.
   std::vector<int> choices;
@@ -1016,6 +1049,11 @@ DetectionResult DetectImpacts(AudioReader& reader, const DetectOptions& options)
   // 3. Detect in each signal, block by block.
   std::vector<SignalAcrossBlocks> signals(choices.size());
   DetectBlocks(&reader, i0, i1, choices, options, &signals);
+  if (!length_known) check_start();
+  res.audio = reader.info();
+  i1 = std::min(i1, res.audio.frames);
+  res.start_s = static_cast<double>(i0) / rate;
+  res.end_s = static_cast<double>(i1) / rate;
   res.clipping = reader.clipping();
 
   // 4. Keep the best-scoring signal.
@@ -1082,30 +1120,7 @@ DetectionResult DetectImpacts(AudioReader& reader, const DetectOptions& options)
       for (Impact& im : q.impacts) CoarsenToHop(&im, chosen.hop_samples, rate);
   }
   res.main_sequence = LongestSequence(res.sequences);
-  for (const ClippingReport& c : res.clipping)
-    if (c.clipped())
-      res.warnings.push_back({"clipped",
-                              "channel " + std::to_string(c.channel) + " is clipped (" +
-                                  std::to_string(c.clipped_samples) +
-                                  " samples at its extreme value); onsets are still usable, "
-                                  "amplitudes are not",
-                              -1});
-  if (info.lossy) {
-    const double delay_ms = 1e3 * static_cast<double>(info.codec_delay_samples) / rate;
-    res.warnings.push_back(
-        {"codec_delay",
-         "decoded from lossy " + info.subtype + " (" + info.format + "): " +
-             (info.codec_delay_samples > 0
-                  ? std::to_string(info.codec_delay_samples) + " priming samples (" +
-                        Fmt("%.2f", delay_ms) + " ms) " +
-                        (info.codec_delay_trimmed
-                             ? "were trimmed as the file says"
-                             : "are declared but were not trimmed: times are late by that much")
-                  : std::string("no codec delay stated")) +
-             "; lossy coding smears onsets (pre-echo), so a constant offset of up to a few ms "
-             "is possible (intervals are not)",
-         -1});
-  }
+  RecordingWarnings(reader, res, &res.warnings);
   ChannelChoiceWarning(res, &res.warnings);
   res.warnings.insert(res.warnings.end(), chosen.warnings.begin(), chosen.warnings.end());
   FlagWarnings(res.sequences, &res.warnings);

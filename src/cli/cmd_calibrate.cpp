@@ -398,6 +398,11 @@ void Run(const CalibrateArgs& a) {
                 "--report/--plot show one fit: not with --batch (run "
                 "`bouncecal report FILE` per file)");
   }
+  if (a.report.any() && std::find(a.files.begin(), a.files.end(), "-") != a.files.end()) {
+    throw Error(ErrorCode::kUsage,
+                "--report/--plot read the recordings again: not with standard input (-), which "
+                "is read once; save it to a file, or run `bouncecal report -`");
+  }
   ReportPaths report = a.report;
   report.force = a.force;
   CheckReportPaths(report, Inputs(a));
@@ -456,7 +461,8 @@ void RegisterCalibrate(CLI::App& app) {
   auto args = std::make_shared<CalibrateArgs>();
   CLI::App* sub = app.add_subcommand(
       "calibrate", "fit a contact law's damping to recordings and write the parameter file");
-  sub->add_option("files", args->files, "recordings (several: one joint fit, or --batch)")
+  sub->add_option("files", args->files,
+                  "recordings (several: one joint fit, or --batch; - reads standard input)")
       ->required();
   AddSceneFlags(sub, &args->scene, true);
   sub->add_option("--strategy", args->strategy,

@@ -95,6 +95,10 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
   c->chi2_dof = c->dof > 0 ? c->chi2 / c->dof : kNaN;
   c->trend_chi2 = d.trend_chi2;
   c->trend_dof = d.trend_dof;
+  c->misfit_p_value = d.misfit_p_value;
+  c->misfit_e = d.misfit_e;
+  c->misfit_tolerance_e = d.misfit_tolerance_e;
+  c->misfit_scatter_e = d.misfit_scatter_e;
   c->neg_log_likelihood = s.scatter.neg_log_likelihood;
   const int k = p + (fp.options.estimate_scatter ? 1 : 0);
   c->aic = 2.0 * c->neg_log_likelihood + 2.0 * k;
@@ -421,6 +425,9 @@ bool CalibrationOptions::IsValid(std::string* error) const {
   }
   if (!(poor_fit_p_value > 0.0 && poor_fit_p_value < 1.0)) {
     return fail("poor_fit_p_value = " + Fmt(poor_fit_p_value) + " must be in (0, 1)");
+  }
+  if (!(misfit_tolerance_e >= 0.0) || !std::isfinite(misfit_tolerance_e)) {
+    return fail("misfit_tolerance_e = " + Fmt(misfit_tolerance_e) + " must be >= 0");
   }
   if (!(plausible_scatter_e > 0.0) || !std::isfinite(plausible_scatter_e)) {
     return fail("plausible_scatter_e = " + Fmt(plausible_scatter_e) + " must be positive");

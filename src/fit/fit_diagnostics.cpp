@@ -3,14 +3,10 @@
 //
 // Goodness of fit (poor_fit). With sigma_s estimated, chi2/dof of the full model is ~1 by
 // construction, so the law is tested in ways sigma_s cannot absorb:
-//  - restitution: a residual trend with speed. The residuals are regressed (GLS, sigma_s
-//    re-estimated by REML under this alternative) on x = ln(u / u_mean) and x^2 beside the law's
-//    own Jacobian; the Wald statistic of the two coefficients is chi2 with 2 dof (1 when the data
-//    are few). The law's e(v) shape is rejected when the trend is significant (p <
-//    poor_fit_p_value) AND large: its rms over the bounces exceeds the scatter about law-plus-
-//    trend (with the median timing sigma of e) — i.e. most of the apparent scatter sigma_s is
-//    the law's misfit, not the ball's. (Significance alone rejects every law on 50 real bounces
-//    for percent-level systematics far below the scatter.)
+//  - restitution: the law's e(v) against a more flexible e(v), each with its own scatter, and
+//    the misfit's size against what matters downstream (law_misfit.cpp): poor_fit when the
+//    misfit is significant and larger than the tolerance; significant and smaller:
+//    law_misfit_small.
 //  - the scatter itself: sigma_s more than two of its sigmas above plausible_scatter_e.
 //  - trajectory: chi2 of the impact times with the restitution fit's sigma_s, against its
 //    chi2(dof) distribution (normal approximation), p < poor_fit_p_value.
@@ -18,69 +14,16 @@
 // fit stopped early has no goodness to test).
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
-#include <sstream>
 
 #include "fit/calibrate_stages.hpp"
+#include "fit/text.hpp"
 
 namespace bouncecal::calib {
 namespace {
 
-std::string Fmt(double v, int prec = 3) {
-  std::ostringstream os;
-  os << std::setprecision(prec) << v;
-  return os.str();
-}
-
-// Upper tail of chi2 with 1 or 2 degrees of freedom.
-double Chi2Survival(double chi2, int dof) {
-  if (dof == 1) return std::erfc(std::sqrt(std::max(chi2, 0.0) / 2.0));
-  return std::exp(-std::max(chi2, 0.0) / 2.0);
-}
+using fit_text::Fmt;
 
 }  // namespace
-
-double TrendChi2(const FitProblem& fp, const Solution& s, int* dof, double* trend_rms,
-                 double* scale) {
-  *dof = 0;
-  *trend_rms = *scale = 0.0;
-  const int n = fp.data.size();
-  const int p = static_cast<int>(s.jacobian.cols());
-  // Enough points for the two extra terms and a scatter estimate: n - p - 2 >= 3.
-  const int extra = n - p - 2 >= 3 ? 2 : (n - p - 1 >= 3 ? 1 : 0);
-  if (extra == 0 || fp.options.strategy == FitStrategy::kTrajectory) return 0.0;
-  double mean = 0.0;
-  for (const auto& pt : fp.data.points) mean += std::log(pt.u_m_s) / n;
-  Eigen::MatrixXd j(n, p + extra);
-  j.leftCols(p) = s.jacobian;
-  for (int k = 0; k < n; ++k) {
-    const double x = std::log(fp.data.points[static_cast<size_t>(k)].u_m_s) - mean;
-    j(k, p) = x;
-    if (extra == 2) j(k, p + 1) = x * x;
-  }
-  ScatterOptions so;
-  const ScatterProblem sp(s.residuals, j, s.timing_cov, {}, so);
-  const ScatterFit f = fp.options.estimate_scatter ? sp.Fit() : ScatterFit{};
-  const double sigma_s = fp.options.estimate_scatter ? f.sigma : 0.0;
-  const ScatterProblem::Evaluation ev = sp.At(sigma_s);
-  // The law alone at the same C: the trend's Wald statistic beta^T Cov_beta^-1 beta is the drop
-  // in chi2 the trend gives (the extra-sum-of-squares identity of the general linear hypothesis,
-  // Seber & Lee, Linear Regression Analysis, 2nd ed., ch. 4), computed without inverting a block
-  // of the covariance (which cancels when the trend is nearly collinear with the law's columns).
-  const ScatterProblem::Evaluation ev0 =
-      ScatterProblem(s.residuals, s.jacobian, s.timing_cov, {}, so).At(sigma_s);
-  if (!ev.ok || !ev0.ok) return 0.0;
-  *dof = extra;
-  // Size of the misfit: how much the predictions move when the trend is allowed, against the
-  // scatter about the law-plus-trend and the typical timing sigma of e.
-  const Eigen::VectorXd moved = j * ev.step;
-  *trend_rms = std::sqrt(moved.squaredNorm() / n);
-  std::vector<double> es;
-  for (const auto& pt : fp.data.points) es.push_back(pt.e_sigma);
-  std::nth_element(es.begin(), es.begin() + static_cast<long>(es.size() / 2), es.end());
-  *scale = std::hypot(sigma_s, es[es.size() / 2]);
-  return std::max(ev0.chi2 - ev.chi2, 0.0);
-}
 
 Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u,
                    const StartsReport& starts) {
@@ -122,17 +65,21 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
   }
   // Goodness of fit.
   if (o.strategy == FitStrategy::kRestitution) {
-    double size = 0.0, scale = 0.0;
-    d.trend_chi2 = TrendChi2(fp, s, &d.trend_dof, &size, &scale);
-    if (d.trend_dof > 0) {
-      const double pv = Chi2Survival(d.trend_chi2, d.trend_dof);
-      if (pv < o.poor_fit_p_value && size > scale) {
-        set(FitOutcome::kPoorFit,
-            "the law's e(v) misses the measured trend with speed by " + Fmt(size, 2) +
-                " rms, more than the bounces scatter about that trend (" + Fmt(scale, 2) +
-                "; trend chi2 = " + Fmt(d.trend_chi2, 3) + " for " + std::to_string(d.trend_dof) +
-                " dof, p = " + Fmt(pv, 2) + ")");
-      }
+    const LawMisfit m = TestLawMisfit(fp, s);
+    d.trend_chi2 = m.chi2;
+    d.trend_dof = m.dof;
+    if (m.dof > 0) {
+      d.misfit_p_value = m.p_value;
+      d.misfit_e = m.rms_e;
+      d.misfit_tolerance_e = m.tolerance_e;
+      d.misfit_scatter_e = m.scatter_e;
+    }
+    if (m.matters) {
+      set(FitOutcome::kPoorFit, MisfitText(m) + ": the law's e(v) has the wrong shape");
+    } else if (m.significant) {
+      d.warnings.push_back(
+          {"law_misfit_small",
+           MisfitText(m) + ": significant, but below the tolerance, so the fit is usable", -1});
     }
   } else {
     const int dof = static_cast<int>(s.residuals.size() - s.jacobian.cols());

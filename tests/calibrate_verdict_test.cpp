@@ -2,7 +2,8 @@
 // and fitted by `bouncecal calibrate` as a user runs them:
 //   - a constant-e ball whose e(v), as measured, has a small shape of its own (a 1 cm steel ball
 //     with air drag and the seed law's finite contacts, fitted without --contact-duration; a
-//     glass marble) is converged: its misfit is below the 0.002 the exported decks are held to;
+//     glass marble) is converged: its misfit is below the 0.002 the exported decks are held to,
+//     so it exports, and the deck states the misfit beside the mapping error;
 //   - a ball whose e(v) truly has a shape no constant-e law has (viscoelastic-like, e 0.84 ->
 //     0.94) is poor_fit for walton-braun, and the law it was rendered with is ranked.
 // The same constant-e recordings are run by LAMMPS, LIGGGHTS and Yade in
@@ -79,7 +80,7 @@ bool HasCode(const json& warnings, const std::string& code, json* found = nullpt
 
 class ConstantE : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
 
-TEST_P(ConstantE, ConvergedWithTheMisfitStated) {
+TEST_P(ConstantE, ConvergedWithTheMisfitStatedAndExported) {
   const auto [scene, preset] = GetParam();
   ScratchDir dir("bc_verdict");
   const Fitted f =
@@ -95,6 +96,24 @@ TEST_P(ConstantE, ConvergedWithTheMisfitStated) {
   if (fit.at("misfit_p_value").get<double>() < 1e-3) {
     EXPECT_TRUE(HasCode(f.params.at("warnings"), "law_misfit_small")) << f.params;
     EXPECT_NE(f.run.err.find("warning [law_misfit_small]"), std::string::npos) << f.run.err;
+  }
+  // It exports, and the deck and its JSON state the misfit beside the mapping error.
+  for (const char* target : {"lammps", "liggghts", "yade"}) {
+    const std::string out = dir / (std::string("deck_") + target);
+    const CommandResult e = RunCommand(kBin, "export " + (dir / "p.json") + " --to " + target +
+                                                 " -o " + out + " --allow-approximation --json");
+    ASSERT_EQ(e.exit_code, 0) << target << ": " << e.err;
+    const json mapping = json::parse(e.out);
+    EXPECT_EQ(mapping.at("law_misfit_e"), fit.at("misfit_e")) << target;
+    EXPECT_EQ(mapping.at("law_misfit_tolerance_e"), fit.at("misfit_tolerance_e")) << target;
+    EXPECT_EQ(HasCode(mapping.at("warnings"), "law_misfit_small"),
+              HasCode(f.params.at("warnings"), "law_misfit_small"));
+    const std::string deck =
+        Slurp(out + (std::string(target) == "yade" ? "/bounce.py" : "/in.bounce"));
+    const std::size_t mapping_line = deck.find("mapping: max |e_native - e_fit|");
+    const std::size_t misfit_line = deck.find("fit: the law's e(v) differs");
+    EXPECT_NE(mapping_line, std::string::npos) << deck.substr(0, 2000);
+    EXPECT_NE(misfit_line, std::string::npos) << deck.substr(0, 2000);
   }
 }
 

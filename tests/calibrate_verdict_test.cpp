@@ -5,7 +5,8 @@
 //     glass marble) is converged: its misfit is below the 0.002 the exported decks are held to,
 //     so it exports, and the deck states the misfit beside the mapping error;
 //   - a ball whose e(v) truly has a shape no constant-e law has (viscoelastic-like, e 0.84 ->
-//     0.94) is poor_fit for walton-braun, and the law it was rendered with is ranked.
+//     0.94) is poor_fit for walton-braun, with a hint naming the laws whose e depends on speed;
+//   - every outcome and warning carries a hint, in the JSON, the text and the report.
 // The same constant-e recordings are run by LAMMPS, LIGGGHTS and Yade in
 // export_integration_test.cpp (label integration).
 #include <gtest/gtest.h>
@@ -92,9 +93,13 @@ TEST_P(ConstantE, ConvergedWithTheMisfitStatedAndExported) {
   ASSERT_TRUE(fit.at("misfit_e").is_number()) << fit;
   EXPECT_GE(fit.at("misfit_tolerance_e").get<double>(), 0.002);
   EXPECT_LT(fit.at("misfit_e").get<double>(), fit.at("misfit_tolerance_e").get<double>());
-  // A significant small misfit is said.
+  EXPECT_NE(fit.at("hint").get<std::string>().find("bouncecal export"), std::string::npos);
+  // A significant small misfit is said, with what would bring the law closer: the contact
+  // duration these fits leave in the intervals.
+  json w;
   if (fit.at("misfit_p_value").get<double>() < 1e-3) {
-    EXPECT_TRUE(HasCode(f.params.at("warnings"), "law_misfit_small")) << f.params;
+    ASSERT_TRUE(HasCode(f.params.at("warnings"), "law_misfit_small", &w)) << f.params;
+    EXPECT_NE(w.at("hint").get<std::string>().find("--contact-duration"), std::string::npos) << w;
     EXPECT_NE(f.run.err.find("warning [law_misfit_small]"), std::string::npos) << f.run.err;
   }
   // It exports, and the deck and its JSON state the misfit beside the mapping error.
@@ -121,7 +126,7 @@ INSTANTIATE_TEST_SUITE_P(Verdicts, ConstantE,
                          ::testing::Values(std::make_pair(kSteelScene, "steel-copper"),
                                            std::make_pair(kMarbleScene, "glass-glass")));
 
-TEST(Verdicts, AShapeNoConstantELawHasIsPoorFit) {
+TEST(Verdicts, AShapeNoConstantELawHasIsPoorFitWithTheSpeedDependentLawsNamed) {
   ScratchDir dir("bc_verdict");
   const Fitted f =
       RenderAndFit(dir, kSuperballScene, "--preset rubber-wood --truth-from law --scatter-e 0.003",
@@ -131,7 +136,16 @@ TEST(Verdicts, AShapeNoConstantELawHasIsPoorFit) {
   ASSERT_EQ(fit.at("outcome"), "poor_fit") << fit.at("reason");
   EXPECT_GT(fit.at("misfit_e").get<double>(), fit.at("misfit_tolerance_e").get<double>());
   EXPECT_LT(fit.at("misfit_p_value").get<double>(), 1e-3);
+  // The hint names --law all and the laws whose e depends on speed (the registry's, found by
+  // evaluating each), not the constant-e ones.
+  const std::string hint = fit.at("hint");
+  for (const char* want : {"--law all", "hertz-viscoelastic", "hunt-crossley", "jiang-liu"})
+    EXPECT_NE(hint.find(want), std::string::npos) << want << " not in: " << hint;
+  for (const char* not_want : {"walton-braun", "linear-dashpot", "hertz-tsuji"})
+    EXPECT_EQ(hint.find(not_want), std::string::npos) << not_want << " in: " << hint;
+  // The text says it too: the reason and the next step on stderr.
   EXPECT_NE(f.run.err.find("outcome poor_fit"), std::string::npos) << f.run.err;
+  EXPECT_NE(f.run.err.find("next: fit every law"), std::string::npos) << f.run.err;
   // The law it was rendered with follows it: --law all ranks it (first).
   const CommandResult all =
       RunCommand(kBin, "calibrate " + (dir / "rec.flac") + " --scene " + (dir / "scene.toml") +
@@ -140,6 +154,31 @@ TEST(Verdicts, AShapeNoConstantELawHasIsPoorFit) {
   const json laws = json::parse(all.out).at("laws");
   ASSERT_TRUE(laws.at(0).at("adequate").get<bool>()) << laws.at(0).at("fit").at("reason");
   EXPECT_EQ(laws.at(0).at("law").at("name"), "hertz-viscoelastic");
+  for (const auto& l : laws) {
+    EXPECT_FALSE(l.at("fit").at("hint").get<std::string>().empty()) << l.at("law").at("name");
+  }
+}
+
+// Every warning a command prints carries a hint (JSON), shown after "next:" on stderr.
+TEST(Verdicts, EveryWarningNamesTheNextStep) {
+  ScratchDir dir("bc_verdict");
+  // A drop stated far too high and no drag on a ping-pong ball: several warnings at once.
+  const std::string rec = dir / "pp.flac";
+  ASSERT_EQ(RunCommand(kBin, "synth --preset pingpong-wood --seed 4 -o " + rec).exit_code, 0);
+  const std::string args = "analyze " + rec + " --diameter 0.04 --mass 0.0027 --height 2.0";
+  const CommandResult r = RunCommand(kBin, args + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json warnings = json::parse(r.out).at("warnings");
+  ASSERT_FALSE(warnings.empty());
+  const CommandResult text = RunCommand(kBin, args);
+  for (const auto& w : warnings) {
+    EXPECT_FALSE(w.at("hint").get<std::string>().empty()) << w;
+    const std::string code = w.at("code");
+    const std::size_t at = text.err.find("warning [" + code + "]");
+    ASSERT_NE(at, std::string::npos) << code << "\n" << text.err;
+    const std::string line = text.err.substr(at, text.err.find('\n', at) - at);
+    EXPECT_NE(line.find("; next: "), std::string::npos) << line;
+  }
 }
 
 }  // namespace

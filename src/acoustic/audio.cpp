@@ -577,6 +577,9 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
 }
 
 void AudioReader::EndOfUnknownLength(std::int64_t frames) {
+  constexpr const char* kStreamHint =
+      "check that the writer finished (its end is the recording's end); the frames before the "
+      "cut are used as they are";
   source_->ended = true;
   info_.frames = frames;
   const std::string& path = info_.path;
@@ -591,12 +594,13 @@ void AudioReader::EndOfUnknownLength(std::int64_t frames) {
   if (!bytes.read_error().empty()) {
     warnings_.push_back(
         {"truncated_stream",
-         path + ": reading the input failed (" + bytes.read_error() + "); " + read_to, -1});
+         path + ": reading the input failed (" + bytes.read_error() + "); " + read_to, -1,
+         kStreamHint});
   } else if (sf_error(f) != SF_ERR_NO_ERROR) {
     warnings_.push_back({"truncated_stream",
                          path + ": the " + info_.format + " stream ends inside a frame (" +
                              sf_strerror(f) + "); " + read_to,
-                         -1});
+                         -1, kStreamHint});
   } else if (source_->frame_bytes > 0 && bytes.ended()) {
     const std::int64_t rest = bytes.size() - source_->data_start - frames * source_->frame_bytes;
     if (rest > 0 && rest < source_->frame_bytes)
@@ -604,7 +608,7 @@ void AudioReader::EndOfUnknownLength(std::int64_t frames) {
                            path + ": the stream ends inside a frame (" + std::to_string(rest) +
                                " of its " + std::to_string(source_->frame_bytes) + " bytes); " +
                                read_to,
-                           -1});
+                           -1, kStreamHint});
   }
 }
 

@@ -164,13 +164,13 @@ void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
                std::abs(c.impacts - used->impacts) > std::max(2, used->impacts / 10);
   }
   if (!disagree) return;
-  out->push_back({"channel_choice",
-                  "the channels disagree; " + name(r.channel) +
-                      " was used: its main sequence scores " + Fmt("%.1f", used->score) + " (" +
-                      std::to_string(used->impacts) + " impacts from " +
-                      Fmt("%.4f", used->first_impact_s) + " s), " + others +
-                      " (score = sum of the members' tracker weights)",
-                  -1});
+  out->push_back(
+      {"channel_choice",
+       "the channels disagree; " + name(r.channel) + " was used: its main sequence scores " +
+           Fmt("%.1f", used->score) + " (" + std::to_string(used->impacts) + " impacts from " +
+           Fmt("%.4f", used->first_impact_s) + " s), " + others +
+           " (score = sum of the members' tracker weights)",
+       -1, "listen to each (--channel N --click-track FILE.wav) and choose with --channel N"});
 }
 
 // Warnings of one sequence's flags (missed and irregular intervals).
@@ -183,20 +183,22 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
                           std::to_string(k) +
                           " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
                           " s); its interval is about two expected ones",
-                      k});
+                      k,
+                      "listen to the impacts kept (detect --click-track FILE.wav); a quiet bounce "
+                      "may need a lower --min-snr-db"});
     for (int k : q.irregular_after) {
       const auto& im = q.impacts;
       const std::size_t j = static_cast<std::size_t>(k);
       const double d = im[j + 1].time_s - im[j].time_s;
       const double d0 = j > 0 ? im[j].time_s - im[j - 1].time_s : 0.0;
-      out->push_back({"irregular_interval",
-                      "sequence " + std::to_string(s) + ": the interval after impact " +
-                          std::to_string(k) + " (t = " + Fmt("%.4f", im[j].time_s) +
-                          " s: " + Fmt("%.4f", d) + " s" +
-                          (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
-                          ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
-                          "sequence continues through it",
-                      k});
+      out->push_back(
+          {"irregular_interval",
+           "sequence " + std::to_string(s) + ": the interval after impact " + std::to_string(k) +
+               " (t = " + Fmt("%.4f", im[j].time_s) + " s: " + Fmt("%.4f", d) + " s" +
+               (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
+               ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
+               "sequence continues through it",
+           k, "nothing to do if the ball hit an uneven spot; drop it on a flat, hard floor"});
     }
   }
 }
@@ -238,14 +240,16 @@ void CapWarnings(std::size_t candidates, std::size_t sequences, double from_s, d
                   "sequence tracking (TrackOptions::max_candidates), so weaker drops or bounces "
                   "may be missing",
                   candidates, from_s, to_s, to.max_candidates);
-    warnings->push_back({"detection_capped", msg, -1});
+    warnings->push_back({"detection_capped", msg, -1,
+                         "--start/--end around the drop (fewer onsets compete there)"});
   }
   if (sequences >= static_cast<std::size_t>(to.max_sequences)) {
     std::snprintf(msg, sizeof msg,
                   "%zu bounce sequences found in [%.1f, %.1f) s, the most tracked there "
                   "(TrackOptions::max_sequences): further drops in it are not reported",
                   sequences, from_s, to_s);
-    warnings->push_back({"detection_capped", msg, -1});
+    warnings->push_back(
+        {"detection_capped", msg, -1, "analyse the drops in parts with --start/--end"});
   }
 }
 
@@ -611,7 +615,7 @@ void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, bool last_b
                     "into analysis blocks (DetectOptions::max_block_s): its impacts after the "
                     "cut may be missing or reported as a separate sequence",
                     t0, own_hi_s);
-      d.warnings.push_back({"block_split", msg, -1});
+      d.warnings.push_back({"block_split", msg, -1, "--start/--end around this drop"});
     }
     m.sequences.push_back(std::move(q));
   }
@@ -958,7 +962,7 @@ void RecordingWarnings(const AudioReader& reader, const DetectionResult& res,
                           std::to_string(c.clipped_samples) +
                           " samples at its extreme value); onsets are still usable, "
                           "amplitudes are not",
-                      -1});
+                      -1, "record the next drop at a lower input gain"});
   if (res.audio.lossy) {
     const double delay_ms =
         1e3 * static_cast<double>(res.audio.codec_delay_samples) / res.audio.sample_rate_hz;
@@ -974,7 +978,7 @@ void RecordingWarnings(const AudioReader& reader, const DetectionResult& res,
                   : std::string("no codec delay stated")) +
              "; lossy coding smears onsets (pre-echo), so a constant offset of up to a few ms "
              "is possible (intervals are not)",
-         -1});
+         -1, "record in WAV or FLAC (a phone's uncompressed or lossless setting) if you can"});
   }
 }
 

@@ -81,16 +81,18 @@ std::string Trim(std::string s) {
 
 void CheckOutcome(const ParamFile& pf, const std::string& path, bool force) {
   if (pf.outcome == "converged" || force) return;
-  std::string message;
-  if (pf.doc.contains("fit") && pf.doc["fit"].contains("message") &&
-      pf.doc["fit"]["message"].is_string()) {
-    message = pf.doc["fit"]["message"].get<std::string>();
-  }
+  auto text = [&](const char* key) {
+    return pf.doc.contains("fit") && pf.doc["fit"].contains(key) && pf.doc["fit"][key].is_string()
+               ? pf.doc["fit"][key].get<std::string>()
+               : std::string();
+  };
+  const std::string message = text("message"), hint = text("hint");
   throw Error(ErrorCode::kFitFailed,
               path + ": fit.outcome is '" + (pf.outcome.empty() ? "missing" : pf.outcome) +
                   "', not 'converged'" + (message.empty() ? "" : " (" + message + ")") +
                   ": its parameters may not describe the recording; not exported "
-                  "(ExportOptions::force overrides)");
+                  "(ExportOptions::force overrides)" +
+                  (hint.empty() ? "" : "; next, for the fit: " + hint));
 }
 
 // Checks the output directory (run it before any work); true when it already exists.
@@ -237,7 +239,7 @@ void ReadLawMisfit(const ParamFile& pf, ExportResult* r) {
   if (!pf.doc.contains("warnings") || !pf.doc["warnings"].is_array()) return;
   for (const auto& w : pf.doc["warnings"]) {
     if (!w.is_object() || w.value("code", "") != "law_misfit_small") continue;
-    r->warnings.push_back({"law_misfit_small", w.value("message", ""), -1});
+    r->warnings.push_back({"law_misfit_small", w.value("message", ""), -1, w.value("hint", "")});
   }
 }
 

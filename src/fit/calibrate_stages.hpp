@@ -196,6 +196,7 @@ Uncertainty EstimateUncertainty(const FitProblem& problem, const Solution& s,
 struct Diagnosis {
   FitOutcome outcome = FitOutcome::kConverged;
   std::string reason;  // one line
+  std::string hint;    // the next step, one line
   std::vector<Warning> warnings;
   double trend_chi2 = 0.0;  // lack-of-fit statistic of the restitution model (LawMisfit::chi2)
   int trend_dof = 0;
@@ -223,6 +224,12 @@ struct LawMisfit {
   bool matters = false;      // significant and rms_e > tolerance_e: poor_fit
 };
 LawMisfit TestLawMisfit(const FitProblem& problem, const Solution& s);
+// The registered laws (the expression law aside) whose e changes with the impact speed, found
+// by evaluating each at its default parameters a decade apart about the median measured speed.
+std::vector<std::string> SpeedDependentLaws(const FitProblem& problem);
+// What to try when a law's e(v) has the wrong shape: --law all, the speed-dependent laws other
+// than `law`, the contact-duration effect when it is off, a drop height's sigma when it is exact.
+std::string LawShapeHint(const FitProblem& problem, const std::string& law);
 // One line with the misfit's numbers.
 std::string MisfitText(const LawMisfit& m);
 

@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "bouncecal/physics/law_registry.hpp"
 #include "fit/calibrate_stages.hpp"
 #include "fit/text.hpp"
 
@@ -90,6 +91,50 @@ LawMisfit TestLawMisfit(const FitProblem& fp, const Solution& s) {
   m.significant = m.p_value < fp.options.poor_fit_p_value;
   m.matters = m.significant && m.rms_e > m.tolerance_e;
   return m;
+}
+
+std::vector<std::string> SpeedDependentLaws(const FitProblem& fp) {
+  // A decade of speeds about the measured median: a property of the law, not of how wide the
+  // measured range happens to be.
+  const double v = fp.v_median > 0.0 ? fp.v_median : 1.0;
+  const double lo = v / std::sqrt(10.0), hi = v * std::sqrt(10.0);
+  // A change of e larger than this over the decade is the law's own: far above the contact
+  // integrator's noise (relative tolerance 1e-9) and far below any e(v) a fit could use.
+  constexpr double kMinChange = 1e-6;
+  std::vector<std::string> out;
+  for (const LawInfo& info : RegisteredLaws()) {
+    if (info.needs_expression) continue;
+    try {
+      Scene scene = fp.scene;
+      scene.law = LawSpec{};
+      scene.law.name = info.name;
+      const LawSetup su = MakeLawSetup(scene, fp.options);
+      // Gravity off: the contact alone (g during a contact shifts e by ~1e-5 at low speeds).
+      const double e_lo = ModelRestitution(su, su.start, lo, 0.0, fp.sim, nullptr);
+      const double e_hi = ModelRestitution(su, su.start, hi, 0.0, fp.sim, nullptr);
+      if (std::abs(e_hi - e_lo) > kMinChange) out.push_back(info.name);
+    } catch (const std::exception&) {  // a law this scene cannot make is not suggested
+    }
+  }
+  return out;
+}
+
+std::string LawShapeHint(const FitProblem& fp, const std::string& law) {
+  std::vector<std::string> others;
+  for (const std::string& name : SpeedDependentLaws(fp))
+    if (name != law) others.push_back(name);
+  std::string hint = "fit every law and rank them (--law all)";
+  if (!others.empty()) hint += "; a law whose e changes with speed: " + fit_text::Join(others);
+  if (!fp.scene.effects.contact_duration)
+    hint +=
+        "; take the contact time out of the intervals (--contact-duration, [effects] "
+        "contact_duration = true)";
+  bool exact_drop = false;
+  for (const RecordingData& r : fp.recordings)
+    exact_drop |= r.drop_used && !(r.analysis.height_sigma_m > 0.0);
+  if (exact_drop)
+    hint += "; give the drop height's uncertainty (--height-sigma, [drop] height_sigma_m)";
+  return hint;
 }
 
 std::string MisfitText(const LawMisfit& m) {

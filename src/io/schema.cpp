@@ -84,7 +84,10 @@ json JsonNumber(const std::optional<double>& v) { return v ? JsonNumber(*v) : js
 json WarningsJson(const std::vector<Warning>& warnings) {
   json out = json::array();
   for (const Warning& w : warnings) {
-    out.push_back({{"code", w.code}, {"message", w.message}, {"impact", IntOrNull(w.impact)}});
+    out.push_back({{"code", w.code},
+                   {"message", w.message},
+                   {"impact", IntOrNull(w.impact)},
+                   {"hint", w.hint}});
   }
   return out;
 }
@@ -376,6 +379,7 @@ json CalibrationJson(const Calibration& c, const Provenance& prov, const json& o
               {"outcome", FitOutcomeName(c.outcome)},
               {"exit_code", static_cast<int>(FitOutcomeExitCode(c.outcome))},
               {"reason", c.reason},
+              {"hint", c.hint},
               {"message", c.message},
               {"scatter_e", JsonNumber(c.scatter_e)},
               {"scatter_e_sigma", JsonNumber(c.scatter_e_sigma)},
@@ -464,8 +468,8 @@ json CalibrationRowJson(const std::string& file, const Calibration* c, const Err
     j["status"] = "error";
     j["error"] = err != nullptr ? ErrorJson(err->code(), err->what())
                                 : ErrorJson(ErrorCode::kInternal, "no result");
-    for (const char* k : {"law", "outcome", "reason", "impacts", "scatter_e", "scatter_e_sigma",
-                          "rms_residual", "residual_unit", "chi2_dof"})
+    for (const char* k : {"law", "outcome", "reason", "hint", "impacts", "scatter_e",
+                          "scatter_e_sigma", "rms_residual", "residual_unit", "chi2_dof"})
       j[k] = nullptr;
     j["warnings"] = json::array();
     return j;
@@ -477,6 +481,7 @@ json CalibrationRowJson(const std::string& file, const Calibration* c, const Err
   j["law"] = LawJson(*c);
   j["outcome"] = FitOutcomeName(c->outcome);
   j["reason"] = c->reason;
+  j["hint"] = c->hint;
   j["impacts"] = impacts;
   j["scatter_e"] = JsonNumber(c->scatter_e);
   j["scatter_e_sigma"] = JsonNumber(c->scatter_e_sigma);

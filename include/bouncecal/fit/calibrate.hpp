@@ -33,8 +33,9 @@
 // with the warning law_misfit_small; sigma_s beyond plausible_scatter_e; or trajectory chi2
 // beyond its p < poor_fit_p_value quantile); not_determinable (the data cannot pin a free
 // damping parameter; says which and why); failed (no usable result). Data that defeat a fit
-// are outcomes with a one-line reason, not exceptions; bad input (options, scene, names)
-// throws Error. No wall-clock limit: results do not depend on the machine.
+// are outcomes with a one-line reason and a hint (what to try next), not exceptions; bad input
+// (options, scene, names) throws Error. No wall-clock limit: results do not depend on the
+// machine.
 //
 // Derivatives: kAuto uses the law's analytic de/dp (RestitutionGradient) where it has one (for
 // the trajectory: chained through the exact flight formulas when the scene has no
@@ -191,6 +192,7 @@ struct Calibration {
   bool analytic_jacobian = false;  // kAuto found an analytic path for this law/scene
   FitOutcome outcome = FitOutcome::kFailed;
   std::string reason;                       // one line: why this outcome
+  std::string hint;                         // one line: what to try next (flags, laws, scene)
   std::string message;                      // notes (start values, starts, ...)
   std::vector<Warning> warnings;            // coded diagnostics (README lists the codes)
   std::vector<FittedParameter> parameters;  // every law parameter, in the law's order

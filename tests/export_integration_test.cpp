@@ -120,10 +120,11 @@ void RequireSimulator(const std::string& target) {
 
 // Exports `params` (a converged fit of `law`) to `target` in dir/deck, runs it, and compares the
 // simulator's first three impacts with `bouncecal simulate --params` of the same file; writes
-// the README table's row as build/integration/ROW.md. Returns the mapping (export --json).
+// the README table's row, `label` in its first column, as build/integration/ROW.md. Returns the
+// mapping (export --json).
 json ExportRunAndCompare(const ScratchDir& dir, const std::string& params, const std::string& law,
                          const std::string& target, const std::string& row_name,
-                         std::chrono::steady_clock::time_point start) {
+                         const std::string& label, std::chrono::steady_clock::time_point start) {
   const std::string out = dir / "deck";
   const json fit = json::parse(Slurp(params));
   // Export (from the scratch directory, which must then hold the deck and nothing new: the
@@ -210,13 +211,15 @@ json ExportRunAndCompare(const ScratchDir& dir, const std::string& params, const
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::filesystem::create_directories(std::string(BOUNCECAL_BUILD_DIR) + "/integration");
   std::ofstream row(std::string(BOUNCECAL_BUILD_DIR) + "/integration/" + row_name + ".md");
+  char interval[32] = "– (vacuum)";  // flights without the fit's drag are not compared
+  if (!vacuum) std::snprintf(interval, sizeof interval, "%.1e", worst_interval);
   char buf[1024];
   std::snprintf(
-      buf, sizeof buf, "| %s | %s | `%s` | %s | %.2g | %.5f | %.5f | %.1e | %.1e | %.1e | %.0f |\n",
-      law.c_str(), mapping["simulator_version"].get<std::string>().c_str(),
+      buf, sizeof buf, "| %s | %s | `%s` | %s | %.2g | %.5f | %.5f | %.1e | %.1e | %s | %.0f |\n",
+      label.c_str(), mapping["simulator_version"].get<std::string>().c_str(),
       mapping["native_law"].get<std::string>().c_str(),
       mapping["mapping"].get<std::string>().c_str(), mapping_error, ref[0]["e"].get<double>(),
-      sim[0].v_out_m_s / sim[0].v_in_m_s, worst_e, step_error, worst_interval, seconds);
+      sim[0].v_out_m_s / sim[0].v_in_m_s, worst_e, step_error, interval, seconds);
   row << buf;
   return mapping;
 }
@@ -243,7 +246,7 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json fit = json::parse(Slurp(params));
   ASSERT_EQ(fit["fit"]["outcome"], "converged") << fit["fit"]["message"];
-  ExportRunAndCompare(dir, params, c.law, c.target, c.law + "_" + c.target, start);
+  ExportRunAndCompare(dir, params, c.law, c.target, c.law + "_" + c.target, c.law, start);
 }
 
 // Constant-e balls fitted as a user first would (default restitution strategy, the contact
@@ -253,6 +256,7 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
 // (calibrate_verdict_test.cpp: the same recordings, their verdicts), and a glass marble.
 struct ConstantECase {
   std::string name;    // row name
+  std::string label;   // the README table's first column
   std::string preset;  // synth preset (render settings)
   std::string scene;   // scene file text: ball, surface, drop, effects, law
   std::string law;
@@ -279,7 +283,7 @@ TEST_P(ConstantEExportRun, ConvergedWithASmallMisfitExportsAndRuns) {
   const json fit = json::parse(Slurp(params));
   ASSERT_EQ(fit["fit"]["outcome"], "converged") << fit["fit"]["reason"];
   const json mapping =
-      ExportRunAndCompare(dir, params, c.law, c.target, c.name + "_" + c.target, start);
+      ExportRunAndCompare(dir, params, c.law, c.target, c.name + "_" + c.target, c.label, start);
   // The deck's JSON states the fit's misfit beside the mapping error.
   ASSERT_TRUE(mapping.is_object());
   EXPECT_EQ(mapping["law_misfit_e"], fit["fit"]["misfit_e"]);
@@ -296,8 +300,12 @@ std::vector<ConstantECase> ConstantECases() {
       "[law]\nname = \"hertz-tsuji\"\n[law.parameters]\ne = 0.93\n";
   std::vector<ConstantECase> out;
   for (const char* target : {"lammps", "liggghts", "yade"}) {
-    out.push_back({"steel_drag_walton_braun", "steel-copper", steel, "walton-braun", target});
-    out.push_back({"glass_marble_hertz_tsuji", "glass-glass", marble, "hertz-tsuji", target});
+    out.push_back({"steel_drag_walton_braun",
+                   "walton-braun: 1 cm steel, drag, contacts in the intervals (law_misfit_small)",
+                   "steel-copper", steel, "walton-braun", target});
+    out.push_back({"glass_marble_hertz_tsuji",
+                   "hertz-tsuji: glass marble, drag, contacts in the intervals (law_misfit_small)",
+                   "glass-glass", marble, "hertz-tsuji", target});
   }
   return out;
 }

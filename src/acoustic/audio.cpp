@@ -348,6 +348,9 @@ void CheckInputPath(const std::string& path) {
   if (path == "-") return;
   if (!fs::exists(p, ec)) throw Error(ErrorCode::kInputMissing, path + ": no such file");
   if (fs::is_directory(p, ec)) throw Error(ErrorCode::kInputMissing, path + ": is a directory");
+  // A FIFO or a device: not opened here (opening and closing a FIFO's read end lets its writer
+  // start into a pipe without a reader), and its size says nothing.
+  if (!fs::is_regular_file(p, ec)) return;
   {
     std::ifstream probe(p, std::ios::binary);
     if (!probe) {
@@ -355,7 +358,6 @@ void CheckInputPath(const std::string& path) {
                   path + ": cannot be opened for reading (" + std::strerror(errno) + ")");
     }
   }
-  if (!fs::is_regular_file(p, ec)) return;  // a FIFO or a device: its size says nothing
   const auto size = fs::file_size(p, ec);
   if (!ec && size == 0) throw Error(ErrorCode::kNotAudio, path + ": empty file (0 bytes)");
 }

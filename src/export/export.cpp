@@ -213,6 +213,23 @@ std::string LawSummary(const Scene& s) {
   return out;
 }
 
+// The simulator version the deck is written for (the given one, else the one on PATH, else the
+// verified one), with a note when it is not the verified one.
+void SetSimulatorVersion(const ExportOptions& options, ExportResult* r) {
+  r->simulator_version = options.simulator_version;
+  if (r->simulator_version.empty()) r->simulator_version = DetectSimulatorVersion(options.target);
+  const std::string verified = VerifiedSimulatorVersion(options.target);
+  if (r->simulator_version.empty()) {
+    r->simulator_version = verified;
+    r->notes.push_back(std::string(SimulatorProgram(options.target)) +
+                       " is not on PATH: written for the verified " + verified);
+  } else if (r->simulator_version != verified) {
+    r->notes.push_back(r->simulator_version + " is not the verified " + verified +
+                       ": its mappings and slip compensations are assumed; check with the "
+                       "integration suite");
+  }
+}
+
 // The fitted law's misfit to the measured bounces, beside the mapping's error in the header.
 std::string LawMisfitComment(const ExportResult& r) {
   if (!std::isfinite(r.law_misfit_e))
@@ -520,18 +537,7 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.law = scene.law.name;
   r.law_json = ExportedLawJson(pf, *law, scene);
   ReadLawMisfit(pf, &r);
-  r.simulator_version = options.simulator_version;
-  if (r.simulator_version.empty()) r.simulator_version = DetectSimulatorVersion(options.target);
-  const std::string verified = VerifiedSimulatorVersion(options.target);
-  if (r.simulator_version.empty()) {
-    r.simulator_version = verified;
-    r.notes.push_back(std::string(SimulatorProgram(options.target)) +
-                      " is not on PATH: written for the verified " + verified);
-  } else if (r.simulator_version != verified) {
-    r.notes.push_back(r.simulator_version + " is not the verified " + verified +
-                      ": its mappings and slip compensations are assumed; check with the "
-                      "integration suite");
-  }
+  SetSimulatorVersion(options, &r);
   if (scene.effects.drag != DragModel::kNone) {
     r.notes.push_back("air drag (" + std::string(DragModelName(scene.effects.drag)) +
                       ") is not exported: the simulator flies the ball in vacuum");

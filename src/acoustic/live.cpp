@@ -144,10 +144,11 @@ LiveUpdate LiveDetector::Finish() {
   return update;
 }
 
-void LiveDetector::Warn(const std::string& code, const std::string& message, LiveUpdate* update) {
-  if (std::find(warned_.begin(), warned_.end(), code) != warned_.end()) return;
-  warned_.push_back(code);
-  update->warnings.push_back({code, message, -1});
+void LiveDetector::Warn(const Warning& warning, LiveUpdate* update) {
+  if (std::find(warned_.begin(), warned_.end(), warning.code) != warned_.end()) return;
+  warned_.push_back(warning.code);
+  update->warnings.push_back(warning);
+  update->warnings.back().impact = -1;  // a window's index means nothing in the stream
 }
 
 // One detection run on the window: the batch detector, times moved to stream time; a window
@@ -174,7 +175,7 @@ void LiveDetector::Run(bool final, LiveUpdate* update) {
       DetectionResult r = DetectImpacts(audio, o);
       found = std::move(r.sequences);
       for (const Warning& w : r.warnings)
-        if (w.code == "clipped" || w.code == "detection_capped") Warn(w.code, w.message, update);
+        if (w.code == "clipped" || w.code == "detection_capped") Warn(w, update);
     } catch (const Error& e) {
       window_ = std::move(audio.channels[0]);
       if (e.code() != ErrorCode::kSilence && e.code() != ErrorCode::kNoBounces) throw;
@@ -315,10 +316,11 @@ void LiveDetector::Advance(double end_s, LiveUpdate* update) {
         still.push_back(std::move(tr));
         continue;
       }
-      Warn("live_window_capped",
-           name_ + ": a sequence lasted longer than the live window (" +
-               Num("%g", options_.max_window_s) +
-               " s): it was closed as it stood; the take's analysis has all of it",
+      Warn({"live_window_capped",
+            name_ + ": a sequence lasted longer than the live window (" +
+                Num("%g", options_.max_window_s) +
+                " s): it was closed as it stood; the take's analysis has all of it",
+            -1, "read the take's analysis at the end of the stream: it covers the whole sequence"},
            update);
       const std::vector<Impact>& m = tr.latest.empty() ? tr.reported : tr.latest;
       if (!m.empty()) frozen_until_s_ = std::max(frozen_until_s_, m.back().time_s);

@@ -158,9 +158,8 @@ void PrintMessage(const nlohmann::json& m, bool json) {
               << "): " << m["impacts"].size() << " final impacts\n"
               << std::flush;
   } else if (type == "warning") {
-    std::fprintf(stderr, "bouncecal: warning [%s]: %s\n",
-                 m["warning"]["code"].get<std::string>().c_str(),
-                 m["warning"]["message"].get<std::string>().c_str());
+    const nlohmann::json& w = m["warning"];
+    PrintWarnings({{w["code"], w["message"], -1, w["hint"]}});
   }
 }
 

@@ -3,8 +3,10 @@
 // format the flags give. Blocking reads of whatever is there, so that a live stream is processed
 // as it comes.
 //
-// Stop-gap: AudioReader (acoustic/audio.hpp) is gaining standard input and streams of unknown
-// length (issue 30); when it has, `listen` reads through it and this file goes.
+// Why not AudioReader (acoustic/audio.hpp), which reads standard input since issue 30: it
+// takes no raw PCM (`--rate`, `--format`), its reads wait until a whole block has arrived, and a
+// stream libsndfile cannot parse goes to FFmpeg whole (spooled to its end). Live, this reader
+// returns whatever frames are there.
 //
 //   StreamInput in(STDIN_FILENO, "stdin", RawFormat{});
 //   std::vector<float> x;                       // interleaved frames

@@ -150,7 +150,7 @@ class LiveDetector {
   void Update(std::vector<Sequence> found, bool final, LiveUpdate* update);
   void Close(double end_s, bool final, LiveUpdate* update);
   void Advance(double end_s, LiveUpdate* update);
-  void Warn(const std::string& code, const std::string& message, LiveUpdate* update);
+  void Warn(const Warning& warning, LiveUpdate* update);  // once per code
   std::int64_t RunEvery() const;  // frames between runs for the window held now
 
   double rate_hz_;

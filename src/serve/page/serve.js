@@ -100,6 +100,8 @@
 
   // ---- the per-bounce table and the e(v) plot ----
   function fixed(v, d) { return typeof v === 'number' ? v.toFixed(d) : '-'; }
+  // As the command line prints a warning: its code, message and what to try next.
+  function warningText(w) { return w.code + ': ' + w.message + (w.hint ? '; next: ' + w.hint : ''); }
   function tableRows() {
     if (B.analysis) {
       return B.analysis.bounces.map((b) => ({ seq: B.analysis.sequence, k: b.index, t: b.time_s,
@@ -191,7 +193,7 @@
     setState('ready', a.file + ': ' + a.bounces.length + ' impacts' +
       (typeof e.first_e === 'number' ? ', first e = ' + e.first_e.toFixed(4) : '') +
       '. Fill in the ball to calibrate.');
-    $('warnings').textContent = (a.warnings || []).map((w) => w.code + ': ' + w.message).join('\n');
+    $('warnings').textContent = (a.warnings || []).map(warningText).join('\n');
     $('calibrate').disabled = false;
     $('dl-report').hidden = false;
     scheduleDraw();
@@ -283,7 +285,7 @@
       for (const i of m.impacts) B.live.set(i.sequence + ':' + i.index, i);
       for (const b of m.bounces) B.bounceOf.set(m.sequence + ':' + b.index, b);
     } else if (m.type === 'warning') {
-      $('warnings').textContent += m.warning.code + ': ' + m.warning.message + '\n';
+      $('warnings').textContent += warningText(m.warning) + '\n';
     } else if (m.type === 'analysis') {
       B.take = m.take;
       const a = $('dl-take');
@@ -310,7 +312,9 @@
       const doc = await (await request('/api/calibrate', body, params)).json();
       const best = doc.laws ? doc.laws.find((l) => l.rank === 1) || doc.laws[0] : doc;
       B.params = best;
-      const p = best.law.parameters, lines = [best.law.name + ': ' + best.fit.outcome];
+      const p = best.law.parameters, f = best.fit;
+      const lines = [best.law.name + ': ' + f.outcome + (f.reason ? ' \u2014 ' + f.reason : '') +
+        (f.hint ? '; next: ' + f.hint : '')];
       for (const k of Object.keys(p))
         lines.push('  ' + k + ' = ' + p[k].value.toPrecision(6) +
           (typeof p[k].sigma === 'number' ? ' \u00b1 ' + p[k].sigma.toPrecision(2) : '') + ' ' + p[k].unit +

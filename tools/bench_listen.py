@@ -138,7 +138,7 @@ def main():
         first = [x for r in runs for x in r["first"]]
         late = sum(r["late_writes"] for r in runs)
         print(f"| {name} | {runs[0]['audio_s']:.1f} s | {len(runs)} | "
-              f"{', '.join(str(len(r['latency'])) for r in runs)} | "
+              f"{', '.join(str(len(r['latency']) + len(r['first'])) for r in runs)} | "
               f"{', '.join(str(r['after_end']) for r in runs)} | "
               f"{', '.join(str(r['revised']) for r in runs)} | "
               f"{1e3 * statistics.median(lat):.0f} ms | {1e3 * quantile(lat, 0.9):.0f} ms | "

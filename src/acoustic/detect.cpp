@@ -8,6 +8,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <functional>
@@ -18,6 +19,8 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+
+#include <boost/math/distributions/chi_squared.hpp>
 
 #include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
@@ -33,11 +36,11 @@ namespace {
 
 // One step of 16-bit PCM: a recording whose peak stays at or below it carries no impacts.
 constexpr double kSilencePeak = 1.0 / 32768.0;
-// Guided search: NCC threshold (the blind pass asks for 4/sqrt(L), about 0.47 at 48 kHz; here
-// the time is known to a few percent, so far fewer positions compete) and half window as a
-// fraction of the predicted interval (the ratio of successive intervals drifts by ~1-3 %).
-constexpr double kGuidedMinNcc = 0.35;
-constexpr double kGuidedWindow = 0.04;
+// Guided search: the window spans kGuidedReach spreads of the predicted time on each side
+// (TrackOptions::max_z), the spread of log r the sequence's own (RatioSpread) but at least
+// kMinRatioSpread (a quarter of TrackOptions::scatter_sigma: real balls scatter by >= 0.005 in e).
+constexpr double kGuidedReach = 4.0;
+constexpr double kMinRatioSpread = 0.005;
 // Ranking penalty at the window edge (NCC units): near the noise level a noise peak 0.4 ms from
 // the prediction matched as well as the impact (corpus: NCC 0.37 vs 0.36, a 433 us error).
 constexpr double kGuidedEdgePenalty = 0.15;
@@ -46,99 +49,228 @@ constexpr double kGuidedEdgePenalty = 0.15;
 // first 0.5-2.7 s cut off, the mix and channel 0 came within 3 % of each other.
 constexpr double kChannelScoreMargin = 0.1;
 
-// Tracking caps per second of signal (TrackOptions::max_candidates = 300 and max_sequences = 16
-// hold up to 30 s and 64 s): a drop gives up to ~80 onsets (a steel ball's 76 impacts down to
-// the 3 ms resolution limit) in ~8 s and takes at least ~4 s with the pick-up. Measured on a
-// 10-minute synthetic file of 65 steel drops, one every 9.2 s (8.3 onsets/s): 5 onsets/s left
-// 150-190 onsets per 2-minute block untracked (guided search found most of them again); 10/s
-// tracks them all. The caps still bound the tracker's work on a noisy file.
-constexpr double kCandidatesPerS = 10.0;
-constexpr double kSecondsPerDrop = 4.0;
-
 std::string Fmt(const char* f, double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, v);
   return buf;
 }
 
-// Median of the last (up to) three interval ratios of a sequence.
-double RecentRatio(const std::vector<Impact>& q) {
+// Median of the last (up to) three interval ratios of impacts [0, end).
+double RecentRatio(const std::vector<Impact>& q, std::size_t end) {
   std::vector<double> r;
-  for (std::size_t k = q.size() - 1; k >= 2 && r.size() < 3; --k)
+  for (std::size_t k = end - 1; k >= 2 && r.size() < 3; --k)
     r.push_back((q[k].time_s - q[k - 1].time_s) / (q[k - 1].time_s - q[k - 2].time_s));
   std::sort(r.begin(), r.end());
   return r[r.size() / 2];
 }
 
-// The tracker knows where the next impact of a sequence should be: search there with the
-// template at a lower NCC threshold than the blind pass (a few percent of the interval wide),
-// for the impacts the blind pass missed: flagged gaps (one missed impact) and the tail.
+// One look where a sequence predicts an impact: the best template match in a window
+// kGuidedReach spreads wide around the prediction (FindByTemplate, ranked by NCC - edge
+// penalty towards the window's edges) and its p-value, the chance that noise alone ranks as well
+// somewhere in the window: the NCC where the template meets no impact spreads by
+// s = max(1 / sqrt(L), the window's robust spread) (whitened white noise: 1 / sqrt(L) for a
+// template of L samples).
+struct Look {
+  Impact match;
+  bool any = false;
+  double p = 1.0;
+};
+Look LookAt(const OnsetResult& onsets, const std::vector<float>& x, double t_c, double dn,
+            double ratio_spread) {
+  Look look;
+  // At least two samples either side (the interpolated peak needs its neighbours).
+  const double half = std::max(kGuidedReach * ratio_spread * dn, 2.0 / onsets.rate_hz);
+  double spread = 0.0;
+  look.any = FindByTemplate(onsets, x, t_c, half, -1.0, &look.match, kGuidedEdgePenalty, &spread);
+  if (!look.any) return look;
+  const double s =
+      std::max(spread, 1.0 / std::sqrt(static_cast<double>(onsets.template_wave.size())));
+  // The match was ranked by NCC - edge_penalty u^2 (u: distance from the centre in half
+  // windows); noise alone ranks as well at position u with probability Q((rank + pen u^2) / s).
+  const double u_match = (look.match.time_s - t_c) / half;
+  const double rank = look.match.score - kGuidedEdgePenalty * u_match * u_match;
+  const long positions = std::max(1L, std::lround(half * onsets.rate_hz));
+  double p = 0.0;
+  for (long l = -positions; l <= positions; ++l) {
+    const double u = static_cast<double>(l) / static_cast<double>(positions);
+    p += 0.5 * std::erfc((rank + kGuidedEdgePenalty * u * u) / s / std::sqrt(2.0));
+  }
+  look.p = std::min(1.0, p);
+  if (std::getenv("BC_LOOK"))
+    std::fprintf(stderr, "LOOK t_c %.4f dn %.4f -> %.4f ncc %.3f spread %.3f p %.3g snr %.1f\n",
+                 t_c, dn, look.match.time_s, look.match.score, s, look.p, look.match.snr_db);
+  return look;
+}
+
+// A match joins a sequence when noise alone would match as well in at most one window of twenty
+// (its own p-value), inside a run of looks that noise alone explains with probability at most
+// kGuidedFalseAlarm (Fisher's combination of their p-values).
+constexpr double kGuidedMemberP = 0.05;
+constexpr double kGuidedFalseAlarm = 0.01;
+
+// The spread of log r about the sequence's trend over impacts [0, end): 1.4826 MAD of the
+// changes of log r between successive flights over the last kSpreadFlights regular ones (flights
+// across a flagged gap or after an irregular step left out), / sqrt 2 (each change holds two
+// flights' scatter), with the last flight's timing noise, at least kMinRatioSpread.
+constexpr std::size_t kSpreadFlights = 8;
+double RatioSpread(const Sequence& seq, std::size_t end) {
+  const std::vector<Impact>& q = seq.impacts;
+  auto flagged = [&](std::size_t j) {  // interval j -> j + 1
+    const int k = static_cast<int>(j);
+    return std::find(seq.missed_after.begin(), seq.missed_after.end(), k) !=
+               seq.missed_after.end() ||
+           std::find(seq.irregular_after.begin(), seq.irregular_after.end(), k) !=
+               seq.irregular_after.end();
+  };
+  std::vector<double> change;
+  for (std::size_t k = end - 1; k >= 3 && change.size() < kSpreadFlights; --k) {
+    if (flagged(k - 1) || flagged(k - 2) || flagged(k - 3)) continue;
+    const double r1 = (q[k].time_s - q[k - 1].time_s) / (q[k - 1].time_s - q[k - 2].time_s);
+    const double r0 = (q[k - 1].time_s - q[k - 2].time_s) / (q[k - 2].time_s - q[k - 3].time_s);
+    change.push_back(std::fabs(std::log(r1 / r0)));
+  }
+  double spread = kMinRatioSpread;
+  if (change.size() >= 2) {
+    const auto mid = change.begin() + static_cast<std::ptrdiff_t>(change.size() / 2);
+    std::nth_element(change.begin(), mid, change.end());
+    spread = std::max(spread, 1.4826 * *mid / std::sqrt(2.0));
+  }
+  const double d = q[end - 1].time_s - q[end - 2].time_s;
+  const double timing = std::sqrt(2.0) * q[end - 1].sigma_s / d;
+  return std::hypot(spread, timing);
+}
+
+// Gaps the tracker flagged: m unheard impacts (the m that makes the gap closest to d (r + ... +
+// r^(m+1)) with the ratio r of the flights before it), looked for at their places once the
+// ratio is scaled so that the m + 1 flights fill the gap exactly.
+void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const TrackOptions& to,
+              Sequence* q) {
+  std::vector<int> still_missed;
+  int inserted = 0;
+  for (int k0 : q->missed_after) {
+    const std::size_t k = static_cast<std::size_t>(k0 + inserted);
+    const double gap = q->impacts[k + 1].time_s - q->impacts[k].time_s;
+    if (k < 2) {
+      still_missed.push_back(k0 + inserted);
+      continue;
+    }
+    const double d = q->impacts[k].time_s - q->impacts[k - 1].time_s;
+    const double r0 = std::clamp(RecentRatio(q->impacts, k + 1), to.min_ratio, to.max_ratio);
+    auto flights = [](double r, int n) {  // r + r^2 + ... + r^n
+      double sum = 0.0, p = 1.0;
+      for (int j = 1; j <= n; ++j) sum += (p *= r);
+      return sum;
+    };
+    int m = 1;
+    for (int mm = 2; mm <= to.max_missed; ++mm)
+      if (std::fabs(std::log(gap / (d * flights(r0, mm + 1)))) <
+          std::fabs(std::log(gap / (d * flights(r0, m + 1)))))
+        m = mm;
+    // r with d (r + ... + r^(m+1)) = gap, by bisection (the sum grows with r).
+    double lo = 0.01, hi = 1.5;
+    for (int it = 0; it < 60; ++it)
+      (d * flights(0.5 * (lo + hi), m + 1) < gap ? lo : hi) = 0.5 * (lo + hi);
+    const double r = 0.5 * (lo + hi);
+    std::vector<Impact> found;
+    double t = q->impacts[k].time_s, dn = d;
+    for (int j = 1; j <= m; ++j) {
+      dn *= r;
+      t += dn;
+      const Look look = LookAt(onsets, x, t, dn, RatioSpread(*q, k + 1));
+      if (look.any && look.p <= kGuidedMemberP) found.push_back(look.match);
+    }
+    q->impacts.insert(q->impacts.begin() + static_cast<std::ptrdiff_t>(k + 1), found.begin(),
+                      found.end());
+    if (static_cast<int>(found.size()) < m) {
+      // Flag the widest interval left in the gap (the unheard impacts are there).
+      std::size_t widest = k;
+      for (std::size_t j = k; j <= k + found.size(); ++j)
+        if (q->impacts[j + 1].time_s - q->impacts[j].time_s >
+            q->impacts[widest + 1].time_s - q->impacts[widest].time_s)
+          widest = j;
+      still_missed.push_back(static_cast<int>(widest));
+    }
+    inserted += static_cast<int>(found.size());
+  }
+  q->missed_after = still_missed;
+}
+
+// The tail: up to max_missed + 1 looks ahead at the trend's predictions (each from the match of
+// the look before when it is better than noise's), as long as the interval stays resolvable and
+// inside [.., limit_s). The longest run of looks that noise alone explains with probability below
+// kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, the
+// others as unheard impacts (missed_after). It stops where no run is significant: the noise won
+// or the ball stopped. Returns whether the sequence grew.
+bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double limit_s,
+                const TrackOptions& to, Sequence* q) {
+  bool extended = false;
+  while (q->impacts.size() >= 3) {
+    const double r =
+        std::clamp(RecentRatio(q->impacts, q->impacts.size()), to.min_ratio, to.max_ratio);
+    double t = q->impacts.back().time_s;
+    double d = t - q->impacts[q->impacts.size() - 2].time_s;
+    const double spread = RatioSpread(*q, q->impacts.size());
+    std::vector<Look> looks;
+    for (int j = 0; j <= to.max_missed; ++j) {
+      const double dn = d * r;
+      if (dn < to.min_interval_s || t + dn > limit_s) break;
+      looks.push_back(LookAt(onsets, x, t + dn, dn,
+                             spread * std::sqrt(1.0 + static_cast<double>(looks.size()))));
+      const Look& l = looks.back();
+      const double next = l.any && l.p <= kGuidedMemberP ? l.match.time_s : t + dn;
+      d = next - t;
+      t = next;
+    }
+    // The run whose Fisher combination is the least probable under noise alone.
+    std::size_t best_n = 0;
+    double best_p = 1.0, chi2 = 0.0;
+    for (std::size_t n = 1; n <= looks.size(); ++n) {
+      chi2 -= 2.0 * std::log(std::max(looks[n - 1].p, 1e-300));
+      const double p = boost::math::cdf(
+          boost::math::complement(boost::math::chi_squared(2.0 * static_cast<double>(n)), chi2));
+      if (p < best_p && looks[n - 1].any && looks[n - 1].p <= kGuidedMemberP)
+        best_p = p, best_n = n;
+    }
+    if (best_n == 0 || best_p > kGuidedFalseAlarm) break;
+    bool unheard = false;
+    for (std::size_t n = 0; n < best_n; ++n) {
+      if (!looks[n].any || looks[n].p > kGuidedMemberP) {
+        unheard = true;
+        continue;
+      }
+      if (unheard) q->missed_after.push_back(static_cast<int>(q->impacts.size()) - 1);
+      q->impacts.push_back(looks[n].match);
+      unheard = false;
+    }
+    extended = true;
+  }
+  return extended;
+}
+
+// The tracker knows where the impacts of a sequence should be: search there with the template,
+// for the impacts the blind pass missed: flagged gaps and the tail.
 void ExtendByTemplate(const OnsetResult& onsets, const std::vector<float>& x, double duration_s,
                       const TrackOptions& to, std::vector<Sequence>* sequences) {
   if (onsets.template_wave.empty()) return;
-  const double min_ncc =
-      std::max(kGuidedMinNcc, 3.0 / std::sqrt(static_cast<double>(onsets.template_wave.size())));
   for (std::size_t s = 0; s < sequences->size(); ++s) {
     Sequence& q = (*sequences)[s];
-    // 1. Fill flagged gaps: dt ~ d1 + d2 with d2 = e d1, so the impact is at t_k + dt / (1 + e).
-    std::vector<int> still_missed;
-    int inserted = 0;
-    for (int k0 : q.missed_after) {
-      const std::size_t k = static_cast<std::size_t>(k0 + inserted);
-      const double dt = q.impacts[k + 1].time_s - q.impacts[k].time_s;
-      // e from the flights before the gap (d_prev) and dt = d_prev (e + e^2).
-      double e_est = 0.9;
-      if (k >= 1) {
-        const double d_prev = q.impacts[k].time_s - q.impacts[k - 1].time_s;
-        e_est = 0.5 * (-1.0 + std::sqrt(1.0 + 4.0 * dt / d_prev));  // root of e^2 + e = dt/d_prev
-      }
-      const double t_c = q.impacts[k].time_s + dt / (1.0 + e_est);
-      Impact found;
-      if (FindByTemplate(onsets, x, t_c, kGuidedWindow * dt, min_ncc, &found, kGuidedEdgePenalty)) {
-        q.impacts.insert(q.impacts.begin() + static_cast<std::ptrdiff_t>(k + 1), found);
-        ++inserted;
-      } else {
-        still_missed.push_back(k0 + inserted);
-      }
-    }
-    q.missed_after = still_missed;
-    // 2. Extend the tail while the predicted interval stays resolvable.
+    FillGaps(onsets, x, to, &q);
     const double limit = s + 1 < sequences->size()
                              ? (*sequences)[s + 1].impacts.front().time_s - to.min_interval_s
                              : duration_s - 0.002;
-    bool extended = false;
-    while (q.impacts.size() >= 3) {
-      const double d = q.impacts.back().time_s - q.impacts[q.impacts.size() - 2].time_s;
-      const double e =
-          std::clamp(RecentRatio(q.impacts), to.min_ratio, std::min(to.max_ratio, 0.999));
-      const double dn = d * e;
-      if (dn < to.min_interval_s) break;
-      const double t_c = q.impacts.back().time_s + dn;
-      if (t_c > limit) break;
-      Impact found;
-      if (!FindByTemplate(onsets, x, t_c, kGuidedWindow * dn, min_ncc, &found, kGuidedEdgePenalty))
-        break;
-      const double r = (found.time_s - q.impacts.back().time_s) / d;
-      if (!(r >= to.min_ratio && r <= to.max_ratio) ||
-          std::fabs(std::log(r / e)) > to.max_log_ratio_jump)
-        break;
-      q.impacts.push_back(found);
-      extended = true;
-    }
-    if (extended) {
-      const double d = q.impacts.back().time_s - q.impacts[q.impacts.size() - 2].time_s;
-      const double next_dt = d * RecentRatio(q.impacts);
-      const double next_t = q.impacts.back().time_s + next_dt;
-      if (next_dt < 1.5 * to.min_interval_s)
-        q.end_reason = "resolved_limit";
-      else if (next_t > duration_s)
-        q.end_reason = "end_of_file";
-      else if (s + 1 < sequences->size() &&
-               (*sequences)[s + 1].impacts.front().time_s < next_t + next_dt)
-        q.end_reason = "next_drop";
-      else
-        q.end_reason = "snr_limit";
-    }
+    if (!ExtendTail(onsets, x, limit, to, &q)) continue;
+    const double d = q.impacts.back().time_s - q.impacts[q.impacts.size() - 2].time_s;
+    const double next_dt = d * RecentRatio(q.impacts, q.impacts.size());
+    const double next_t = q.impacts.back().time_s + next_dt;
+    if (next_dt < 1.5 * to.min_interval_s)
+      q.end_reason = "resolved_limit";
+    else if (next_t > duration_s)
+      q.end_reason = "end_of_file";
+    else if (s + 1 < sequences->size() &&
+             (*sequences)[s + 1].impacts.front().time_s < next_t + next_dt)
+      q.end_reason = "next_drop";
+    else
+      q.end_reason = "snr_limit";
   }
 }
 
@@ -225,30 +357,6 @@ int LongestSequence(const std::vector<Sequence>& seqs) {
   return best;
 }
 
-// Tracking keeps at most TrackOptions::max_candidates onsets (the strongest) and
-// max_sequences drops per signal (per block of a long recording; the caps grow with the
-// block's length). When either is reached, say so instead of dropping them silently (issue 14).
-// [from_s, to_s): the stretch of the recording the signal covers.
-void CapWarnings(std::size_t candidates, std::size_t sequences, double from_s, double to_s,
-                 const TrackOptions& to, std::vector<Warning>* warnings) {
-  char msg[400];
-  if (candidates > static_cast<std::size_t>(to.max_candidates)) {
-    std::snprintf(msg, sizeof msg,
-                  "%zu onset candidates in [%.1f, %.1f) s: only the strongest %d entered "
-                  "sequence tracking (TrackOptions::max_candidates), so weaker drops or bounces "
-                  "may be missing",
-                  candidates, from_s, to_s, to.max_candidates);
-    warnings->push_back({"detection_capped", msg, -1});
-  }
-  if (sequences >= static_cast<std::size_t>(to.max_sequences)) {
-    std::snprintf(msg, sizeof msg,
-                  "%zu bounce sequences found in [%.1f, %.1f) s, the most tracked there "
-                  "(TrackOptions::max_sequences): further drops in it are not reported",
-                  sequences, from_s, to_s);
-    warnings->push_back({"detection_capped", msg, -1});
-  }
-}
-
 // Stage list for one signal: onsets -> tracking -> guided search -> timing -> plausibility ->
 // re-timing. (The clipped flags are set once the whole recording was read: MarkClipped.)
 // The onset detector's options in a detection with `options`.
@@ -263,7 +371,7 @@ OnsetOptions OnsetOptionsOf(const DetectOptions& options) {
   return oo;
 }
 
-SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double offset_s,
+SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz,
                                const DetectOptions& options) {
   SignalDetection out;
   const double duration_s = static_cast<double>(x.size()) / rate_hz;
@@ -275,14 +383,15 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, doub
   TrackOptions to;
   to.min_interval_s = options.min_interval_s;
   to.min_sequence_impacts = options.min_sequence_impacts;
-  // The caps grow with the signal's length past a minute (a block of a long recording holds
-  // several drops): kCandidatesPerS onsets and a drop per kSecondsPerDrop.
-  to.max_candidates = std::max(to.max_candidates, static_cast<int>(kCandidatesPerS * duration_s));
-  to.max_sequences = std::max(to.max_sequences, static_cast<int>(duration_s / kSecondsPerDrop));
   out.sequences = TrackSequences(out.candidates, duration_s, to);
-  CapWarnings(out.candidates.size(), out.sequences.size(), offset_s, offset_s + duration_s, to,
-              &out.warnings);
   if (options.guided_search) ExtendByTemplate(onsets, x, duration_s, to, &out.sequences);
+  if (std::getenv("BC_GUIDED"))
+    for (const Sequence& q : out.sequences) {
+      for (std::size_t k = 0; k < q.impacts.size(); ++k)
+        std::fprintf(stderr, "%.4f(%.1f,%.2f) ", q.impacts[k].time_s, q.impacts[k].snr_db,
+                     q.impacts[k].score);
+      std::fprintf(stderr, "\n");
+    }
 
   TimingOptions tim;
   tim.lpc_order = options.lpc_order;
@@ -683,11 +792,11 @@ BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& cho
     SignalDetection d;
     if (factor > 1) {
       Decimate(*x, factor, &xd);
-      d = DetectInSignal(xd, rate / factor, offset_s, options);
+      d = DetectInSignal(xd, rate / factor, options);
       FullRateAmplitudes(*x, rate, &d);
       d.hop_samples *= factor;  // in samples of the file's rate (CoarsenToHop)
     } else {
-      d = DetectInSignal(*x, rate, offset_s, options);
+      d = DetectInSignal(*x, rate, options);
     }
     ShiftTimes(offset_s, &d);
     r.found.back() = std::move(d);

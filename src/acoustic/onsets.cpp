@@ -1554,7 +1554,8 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
 }
 
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out, double edge_penalty) {
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty,
+                    double* ncc_spread) {
   const std::vector<double>& h = r.template_wave;
   const std::vector<float>& w = r.whitened;
   if (h.empty() || !(r.rate_hz > 0.0) || w.size() != x.size()) return false;
@@ -1582,8 +1583,10 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   double best_c = -2.0, best_rank = -1e300;
   const long l_centre = start_of(t_center_s);
   const double inv_half = half_window_s > 0.0 ? 1.0 / (half_window_s * r.rate_hz) : 0.0;
+  std::vector<double> all;  // the window's NCCs, for *ncc_spread
   for (long l = lo; l <= hi; ++l) {
     const double c = ncc(l);
+    if (ncc_spread) all.push_back(c);
     const double u = static_cast<double>(l - l_centre) * inv_half;
     const double rank = c - edge_penalty * u * u;
     if (rank > best_rank) {
@@ -1591,6 +1594,16 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
       best_c = c;
       best_l = l;
     }
+  }
+  if (ncc_spread) {
+    // 1.4826 MAD: the spread of the NCC where there is no impact (a peak's main lobe is a few
+    // of the window's positions).
+    const auto mid = all.begin() + static_cast<std::ptrdiff_t>(all.size() / 2);
+    std::nth_element(all.begin(), mid, all.end());
+    const double med = *mid;
+    for (double& v : all) v = std::fabs(v - med);
+    std::nth_element(all.begin(), mid, all.end());
+    *ncc_spread = 1.4826 * *mid;
   }
   if (best_l < 1 || best_c < min_ncc) return false;
   const double cm = ncc(best_l - 1), cp = ncc(best_l + 1);

@@ -104,7 +104,8 @@ struct TrackOptions {
   bool IsValid(std::string* error) const;
 };
 
-// Weight of a candidate: 0.5 + clamp(snr_db / 20, 0, 2) + 0.5 * clamp(score, 0, 1).
+// Weight of a candidate: 0.5 + clamp(snr_db / 20, 0, 2) + 0.5 * clamp(score, 0, 1)
+// + clamp(rise_db / 40, 0, 0.75) (a new attack rises above what rang before it).
 double CandidateWeight(const Impact& candidate);
 
 // candidates: sorted by time_s. duration_s: length of the recording (for end_reason).

@@ -6,7 +6,7 @@
 //   bouncecal detect a.wav b.m4a --json            # several recordings: a JSON array
 //   bouncecal detect drop.wav --click-track clicks.wav   # listen to what was found
 //
-// --json: schema bouncecal.detect/1 (docs/schema.md; built by DetectionJson, io/schema.hpp).
+// --json: schema bouncecal.detect/2 (docs/schema.md; built by DetectionJson, io/schema.hpp).
 //   Several recordings: an array of these objects, one per recording in order; a recording that
 //   failed is a bouncecal.error/1 object {"schema", "file", "error": {"code", "exit_code",
 //   "message"}}.

@@ -362,7 +362,15 @@ std::string RunScript(const DeckInput& in) {
 }  // namespace exporter
 
 const char* ExportSceneName(ExportScene scene) {
-  return scene == ExportScene::kBounce ? "bounce" : "packing";
+  switch (scene) {
+    case ExportScene::kBounce:
+      return "bounce";
+    case ExportScene::kPacking:
+      return "packing";
+    case ExportScene::kColumn:
+      return "column";
+  }
+  return "?";
 }
 
 bool ParseExportScene(const std::string& text, ExportScene* scene) {
@@ -370,6 +378,8 @@ bool ParseExportScene(const std::string& text, ExportScene* scene) {
     *scene = ExportScene::kBounce;
   } else if (text == "packing") {
     *scene = ExportScene::kPacking;
+  } else if (text == "column") {
+    *scene = ExportScene::kColumn;
   } else {
     return false;
   }
@@ -455,20 +465,64 @@ bool ExportOptions::IsValid(std::string* error) const {
   if (scene == ExportScene::kPacking && target == ExportTarget::kYade) {
     return fail("scene packing: written for lammps and liggghts only (target yade)");
   }
+  if (scene == ExportScene::kColumn && target == ExportTarget::kLiggghts) {
+    return fail("scene column: written for lammps and yade only (target liggghts)");
+  }
+  if (scene == ExportScene::kColumn) return column.IsValid(error);
   return true;
 }
 
-// The fit's law object (values and sigmas); a version-1 file's law rebuilt from the registry.
-static nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law,
-                                      const Scene& scene) {
+namespace exporter {
+
+nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law, const Scene& scene) {
   if (pf.schema == kParamFileSchema && pf.doc.contains("law")) return pf.doc["law"];
   return LawJson(law, law.ParameterValues(), scene.law.expression);
 }
+
+MappedFile MapParamFile(const std::string& path, ExportTarget target, bool force) {
+  MappedFile f{ReadParamFile(path), {}, nullptr, {}, {}, {}, {}};
+  CheckOutcome(f.pf, path, force);
+  f.replay = ReplayFromParamFile(f.pf, path);
+  const Scene& scene = f.replay.scene;
+  f.law = CreateLaw(scene.law, scene);
+  f.body = BodyFromScene(scene);
+  f.speeds = MappingSpeeds(f.replay, *f.law);
+  std::sort(f.speeds.begin(), f.speeds.end());
+  f.mapping = MapLaw(scene, f.speeds, target);
+  for (double v : f.speeds) {
+    f.e_fit.push_back(
+        SimulateContact(*f.law, f.law->ParameterValues(), f.body, v, 0.0).restitution);
+  }
+  return f;
+}
+
+void CheckOutputDirectory(const std::string& dir, bool force) { CheckDirectory(dir, force); }
+void PrepareOutputDirectory(const std::string& dir, bool force) { PrepareDirectory(dir, force); }
+
+void AddVersionNotes(ExportResult* r, ExportTarget target, const std::string& requested) {
+  r->simulator_version = requested;
+  if (r->simulator_version.empty()) r->simulator_version = DetectSimulatorVersion(target);
+  const std::string verified = VerifiedSimulatorVersion(target);
+  if (r->simulator_version.empty()) {
+    r->simulator_version = verified;
+    r->notes.push_back(std::string(SimulatorProgram(target)) +
+                       " is not on PATH: written for the verified " + verified);
+  } else if (r->simulator_version != verified) {
+    r->notes.push_back(r->simulator_version + " is not the verified " + verified +
+                       ": its mappings and slip compensations are assumed; check with the "
+                       "integration suite");
+  }
+}
+
+}  // namespace exporter
 
 ExportResult ExportDeck(const std::string& params_path, const std::string& out_dir,
                         const ExportOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw Error(ErrorCode::kUsage, "export: " + why);
+  if (options.scene == ExportScene::kColumn) {
+    return exporter::ExportColumn(params_path, out_dir, options);
+  }
   // Stage 1: the parameter file, its fit outcome, the replay scene, the output directory.
   const ParamFile pf = ReadParamFile(params_path);
   CheckOutcome(pf, params_path, options.force);
@@ -483,19 +537,8 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.target = ExportTargetName(options.target);
   r.scene = ExportSceneName(options.scene);
   r.law = scene.law.name;
-  r.law_json = ExportedLawJson(pf, *law, scene);
-  r.simulator_version = options.simulator_version;
-  if (r.simulator_version.empty()) r.simulator_version = DetectSimulatorVersion(options.target);
-  const std::string verified = VerifiedSimulatorVersion(options.target);
-  if (r.simulator_version.empty()) {
-    r.simulator_version = verified;
-    r.notes.push_back(std::string(SimulatorProgram(options.target)) +
-                      " is not on PATH: written for the verified " + verified);
-  } else if (r.simulator_version != verified) {
-    r.notes.push_back(r.simulator_version + " is not the verified " + verified +
-                      ": its mappings and slip compensations are assumed; check with the "
-                      "integration suite");
-  }
+  r.law_json = exporter::ExportedLawJson(pf, *law, scene);
+  exporter::AddVersionNotes(&r, options.target, options.simulator_version);
   if (scene.effects.drag != DragModel::kNone) {
     r.notes.push_back("air drag (" + std::string(DragModelName(scene.effects.drag)) +
                       ") is not exported: the simulator flies the ball in vacuum");
@@ -639,6 +682,7 @@ nlohmann::json ExportResultJson(const ExportResult& r) {
           {"packing_restitution",
            r.packing_restitution > 0.0 ? nlohmann::json(r.packing_restitution) : nullptr},
           {"files", r.files},
+          {"column", r.column},
           {"notes", r.notes},
           {"warnings", nlohmann::json::array()}};
 }

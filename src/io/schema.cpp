@@ -217,10 +217,8 @@ json DetectionJson(const std::string& file, const DetectionResult& r,
     j["clipping"].push_back({{"channel", c.channel},
                              {"clipped_samples", c.clipped_samples},
                              {"peak", JsonNumber(c.peak)}});
-  j["impacts"] = json::array();
-  if (!options.chosen.empty())
-    for (const Impact& i : r.sequences.at(static_cast<size_t>(options.chosen.front())).impacts)
-      j["impacts"].push_back(ImpactJson(i));
+  // Each impact once, in its sequence (bouncecal.detect/1 also listed the first chosen
+  // sequence's impacts at the top level; editing that copy changed nothing).
   j["sequences"] = json::array();
   for (const Sequence& s : r.sequences) j["sequences"].push_back(SequenceJson(s));
   j["main_sequence"] = r.main_sequence;

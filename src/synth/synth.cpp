@@ -20,6 +20,7 @@
 #include "bouncecal/physics/flight.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
+#include "random.hpp"
 
 namespace bouncecal {
 namespace {
@@ -33,45 +34,9 @@ std::string Num(double v) {
   return o.str();
 }
 
-// SplitMix64 (Steele, Lea & Flood 2014): tiny, fast, identical on every platform.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t Next() {
-    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-  }
-  // Uniform in [0, 1) with 53 random bits.
-  double Uniform() { return static_cast<double>(Next() >> 11) * (1.0 / 9007199254740992.0); }
-  double Uniform(double a, double b) { return a + (b - a) * Uniform(); }
-  // Standard normal, Box–Muller (both values used).
-  double Normal() {
-    if (has_spare_) {
-      has_spare_ = false;
-      return spare_;
-    }
-    double u1 = Uniform();
-    while (u1 <= 0.0) u1 = Uniform();
-    const double u2 = Uniform();
-    const double r = std::sqrt(-2.0 * std::log(u1));
-    spare_ = r * std::sin(2.0 * M_PI * u2);
-    has_spare_ = true;
-    return r * std::cos(2.0 * M_PI * u2);
-  }
+using synth_random::Rng;
+using synth_random::Stream;
 
- private:
-  std::uint64_t state_;
-  double spare_ = 0.0;
-  bool has_spare_ = false;
-};
-
-// An independent stream per purpose, so e.g. adding distractors does not change the noise.
-Rng Stream(std::uint64_t seed, std::uint64_t purpose, std::uint64_t index = 0) {
-  Rng mix(seed ^ (purpose * 0xD1B54A32D192ED03ULL) ^ (index * 0x8CB92BA72F3D8DD7ULL));
-  return Rng(mix.Next());
-}
 enum Purpose : std::uint64_t {
   kNoise = 1,
   kHum = 2,
@@ -1025,6 +990,26 @@ const char* TruthSourceName(TruthSource s) {
   return s == TruthSource::kLaw ? "law" : "restitution";
 }
 
+namespace {
+
+// The restitution model with e shifted by `shift` (a varied drop).
+RestitutionModel Shifted(const RestitutionModel& m, double shift) {
+  if (shift == 0.0) return m;
+  switch (m.kind) {
+    case RestitutionModel::Kind::kConstant:
+      return RestitutionModel::Constant(m.e0 + shift);
+    case RestitutionModel::Kind::kPowerLaw:
+      return RestitutionModel::PowerLaw(m.e0 + shift, m.c, m.p);
+    case RestitutionModel::Kind::kFunction:
+      break;
+  }
+  const std::function<double(double)> f = m.function;
+  return RestitutionModel::Function([f, shift](double v) { return f(v) + shift; },
+                                    m.description + " + " + Num(shift));
+}
+
+}  // namespace
+
 std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& d) {
   Scene scene = spec.scene;
   scene.drop.first_impact_time_s = d.first_impact_s;
@@ -1032,8 +1017,16 @@ std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& d) {
     scene.drop.height_m = *d.height_m;
     scene.drop.impact_speed_m_s.reset();
   }
-  if (spec.truth_source == TruthSource::kLaw) return ImpactsFromLaw(scene, spec.truth);
-  return ImpactsFromRestitution(scene, spec.restitution, spec.truth);
+  TruthOptions truth = spec.truth;
+  if (d.scatter_seed) truth.scatter_seed = *d.scatter_seed;
+  if (spec.truth_source == TruthSource::kLaw) {
+    if (d.e_shift != 0.0)
+      throw Error(ErrorCode::kBadParameter,
+                  "drop at " + Num(d.first_impact_s) +
+                      " s: an e shift needs restitution truth (the law sets e)");
+    return ImpactsFromLaw(scene, truth);
+  }
+  return ImpactsFromRestitution(scene, Shifted(spec.restitution, d.e_shift), truth);
 }
 
 SynthResult Synthesize(const SynthSpec& spec) {
@@ -1072,6 +1065,15 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
         spec.truth.contact_s ? nlohmann::json(*spec.truth.contact_s) : nlohmann::json("hertz");
   }
   j["truth_options"] = truth_opts;
+  // A varied drop (PlanDrops) says how it differs; other drops keep their two-key form.
+  for (std::size_t d = 0; d < spec.drops.size() && d < j["drops"].size(); ++d) {
+    const SynthDrop& sd = spec.drops[d];
+    if (!sd.scatter_seed && sd.e_shift == 0.0) continue;
+    const std::optional<double> h = sd.height_m ? sd.height_m : spec.scene.drop.height_m;
+    j["drops"][d]["height_m"] = h ? nlohmann::json(*h) : nlohmann::json(nullptr);
+    j["drops"][d]["e_shift"] = sd.e_shift;
+    j["drops"][d]["scatter_seed"] = sd.scatter_seed.value_or(spec.truth.scatter_seed);
+  }
   double e_min = std::numeric_limits<double>::infinity(), e_max = -e_min;
   for (const auto& d : result.truth) {
     for (const TruthImpact& t : d) {
@@ -1191,8 +1193,11 @@ TruthFile LoadTruth(const std::string& path) {
   std::string key;
   try {
     key = "generator";
-    if (j.at(key).get<std::string>().rfind("bouncecal synth", 0) != 0) {
-      throw Error(ErrorCode::kBadParameter, path + ": not a bouncecal synth truth file");
+    const std::string generator = j.at(key).get<std::string>();
+    if (generator.rfind("bouncecal synth", 0) != 0 &&
+        generator.rfind("bouncecal realsound", 0) != 0) {
+      throw Error(ErrorCode::kBadParameter,
+                  path + ": not a bouncecal synth or realsound truth file");
     }
     key = "sample_rate_hz";
     t.sample_rate_hz = j.at(key).get<double>();

@@ -4,9 +4,6 @@
 
 #include <gtest/gtest.h>
 
-#include <malloc.h>
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -18,7 +15,6 @@
 #include "acoustic/avx2_clones.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/synth/synth.hpp"
-#include "core/huge_pages.hpp"
 
 namespace bouncecal {
 namespace {
@@ -380,97 +376,6 @@ TEST(Onsets, NoveltyIsTheRelativeSpectralFluxAtEveryFrameForAnyThreadCount) {
     ASSERT_NEAR(cr.novelty_db[t], cref[t], 1e-9) << "frame " << t << " at the 64-sample hop";
   longer.threads = 3;
   EXPECT_EQ(OnsetDetector(longer, r.rate_hz).Detect(r.x).novelty_db, cr.novelty_db);
-}
-
-TEST(Onsets, ReserveHugePagesKeepsTheValuesAndGrowsGeometrically) {
-  std::vector<float> v = {1.0f, 2.0f, 3.0f};
-  ReserveHugePages(&v, 3u << 20);  // 12 MB: marked for huge pages
-  EXPECT_GE(v.capacity(), 3u << 20);
-  EXPECT_EQ(v, (std::vector<float>{1.0f, 2.0f, 3.0f}));
-  const std::size_t cap = v.capacity();
-  ReserveHugePages(&v, cap + 1);  // appending chunk by chunk stays linear
-  EXPECT_GE(v.capacity(), 2 * cap);
-  ReserveHugePages(&v, 10);  // enough room: nothing moves
-  EXPECT_GE(v.capacity(), 2 * cap);
-  EXPECT_EQ(v.size(), 3u);
-}
-
-long MinorFaults(int who = RUSAGE_SELF) {
-  rusage u{};
-  getrusage(who, &u);
-  return u.ru_minflt;
-}
-
-// Why the heap-mapping tests cannot run here ("" if they can); when they can, the allocator is
-// set as the program sets it (src/cli/main.cpp): freed heap memory is kept.
-std::string WithoutHugePageHeap() {
-#if defined(BOUNCECAL_SANITIZED_BUILD)  // GCC's and Clang's tests (acoustic/avx2_clones.hpp)
-  return "the sanitizers' allocators do not take memory from glibc's heap";
-#else
-  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
-  std::string modes;
-  std::getline(thp, modes);
-  if (modes.find("[never]") != std::string::npos || modes.empty())
-    return "no transparent huge pages here";
-  mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
-  mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
-  return "";
-#endif
-}
-
-TEST(Onsets, PrefaultHeapMapsTheMemoryOfTheAllocationsThatFollow) {
-  const std::string why = WithoutHugePageHeap();
-  if (!why.empty()) GTEST_SKIP() << why;
-  constexpr std::size_t kFloats = std::size_t{6} << 20;  // two arrays of 24 MB: 12 288 pages
-  PrefaultHeap(2 * kFloats * sizeof(float) + (std::size_t{4} << 20));
-  const long before = MinorFaults();
-  std::vector<float> a(kFloats, 1.0f), b(kFloats, 2.0f);
-  const long faults = MinorFaults() - before;
-  EXPECT_EQ(a[kFloats - 1] + b[0], 3.0f);
-  // Measured 2-600 (the pages at the ends of the mapped span stay 4 KiB ones; a huge page the
-  // kernel cannot find under load falls back to 512 small ones); without PrefaultHeap 12 300.
-  const long pages = static_cast<long>(2 * kFloats * sizeof(float) / 4096);
-  EXPECT_LT(faults, pages / 2) << "of " << pages << " pages";
-}
-
-// HeapPrefault: this thread's next allocations, the ones written while the helper maps the rest
-// and the ones after, come from memory marked for huge pages (a few faults each, not one per
-// 4 KiB page: without it 12 300), and keep what this thread wrote; `first` ran on the helper.
-// The faults counted are this thread's (RUSAGE_THREAD): the helper's own (its stack, its
-// populating) are not what is tested, and counted with them the bound failed once under load.
-TEST(Onsets, HeapPrefaultMapsOnAHelperWhileThisThreadGoesOn) {
-  const std::string why = WithoutHugePageHeap();
-  if (!why.empty()) GTEST_SKIP() << why;
-  constexpr std::size_t kFloats = std::size_t{6} << 20;  // 24 MB each
-  std::atomic<bool> ran{false};
-  std::thread::id helper_id;
-  std::vector<float> a;
-  long faults = 0;
-  {
-    const long before = MinorFaults(RUSAGE_THREAD);
-    HeapPrefault prefault(kFloats * sizeof(float) + (std::size_t{4} << 20), kFloats * sizeof(float),
-                          [&] {
-                            helper_id = std::this_thread::get_id();
-                            ran = true;
-                          });
-    a.assign(kFloats, 1.0f);  // written while the helper maps the rest
-    faults = MinorFaults(RUSAGE_THREAD) - before;
-  }
-  EXPECT_TRUE(ran.load());
-  EXPECT_NE(helper_id, std::this_thread::get_id());
-  // Measured 551-1039 with another detection running (a huge page the kernel could not find
-  // falls back to 512 small ones; the span's unaligned start is in small pages too), 1383 once
-  // with RUSAGE_SELF under ctest -j2; in 4 KiB pages the 24 MB would take 6144.
-  const long pages = static_cast<long>(kFloats * sizeof(float) / 4096);
-  RecordProperty("faults_while_the_helper_maps", std::to_string(faults));
-  EXPECT_LT(faults, pages / 2) << "the first part is not in huge pages";
-  const long before = MinorFaults(RUSAGE_THREAD);
-  std::vector<float> b(kFloats, 2.0f);
-  const long after = MinorFaults(RUSAGE_THREAD) - before;
-  RecordProperty("faults_after", std::to_string(after));
-  EXPECT_LT(after, pages / 2) << "the rest is not in huge pages";
-  EXPECT_EQ(std::count(a.begin(), a.end(), 1.0f), static_cast<long>(kFloats));
-  EXPECT_EQ(b[kFloats - 1], 2.0f);
 }
 
 TEST(Onsets, TimingDoesNotDependOnLevel) {

@@ -43,7 +43,7 @@ CI_ASAN_TESTS=(
   kinematics_test calibrate_test calibrate_cli_test hardening_test cli_test contact_map_test
 )
 TSAN_TESTS=(calibrate_cli_test calibrate_test hardening_test blocks_test parallel_test)
-TSAN_REGEX='Batch|Jobs|LawComparison|CalibrateCompare|Parallel|Thread|WorkerPool'
+TSAN_REGEX='Batch|Jobs|LawComparison|CalibrateCompare|Parallel|Async|Thread'
 
 timed() {  # name command...: runs it, prints its wall time like .ci/run's stages
   local name=$1 start=$SECONDS

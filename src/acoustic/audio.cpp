@@ -15,7 +15,6 @@
 #include <regex>
 #include <sstream>
 
-#include "../core/huge_pages.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
@@ -447,7 +446,6 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
     SNDFILE* f = source_->file.get();
     if (nch == 1) {  // straight into the channel's buffer
       std::vector<float>& o = (*out)[0];
-      ReserveHugePages(&o, first[0] + static_cast<std::size_t>(want));
       o.resize(first[0] + static_cast<std::size_t>(want));
       got = std::max<sf_count_t>(0, sf_readf_float(f, o.data() + first[0], want));
       o.resize(first[0] + static_cast<std::size_t>(got));
@@ -457,7 +455,6 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
       got = std::max<sf_count_t>(0, sf_readf_float(f, buf.data(), want));
       for (std::size_t c = 0; c < nch; ++c) {
         std::vector<float>& o = (*out)[c];
-        ReserveHugePages(&o, first[c] + static_cast<std::size_t>(got));
         o.resize(first[c] + static_cast<std::size_t>(got));
         float* dst = o.data() + first[c];
         for (std::int64_t i = 0; i < got; ++i) dst[i] = buf[static_cast<std::size_t>(i) * nch + c];

@@ -770,9 +770,9 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
   // 2. Local whitening around each member.
   // Stages 2, 3 and 5-6 treat each member on its own (every member writes its own slots), so
   // the members are shared among TimingOptions::threads.
-  const int threads = StageThreads(o.threads, o.available_threads);
+  const int threads = ResolveThreads(o.threads);
   auto each = [&](std::size_t count, const std::function<void(std::size_t)>& task) {
-    ParallelFor(threads, count, task, o.pool);
+    ParallelFor(threads, count, task);
   };
   std::vector<Neighbourhood> nb(n);
   each(n, [&](std::size_t k) {

@@ -20,7 +20,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "../core/huge_pages.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
@@ -265,12 +264,6 @@ void Run(const SimulateFlags& f) {
   const Simulation sim = Simulate(scene, *law, p, options);
   CheckUsable(scene, *law, p, sim);
   if (f.json) {
-    // The document and its text grow the heap by ~1.6 KB per impact (15 MB for 10 000), first
-    // written page by page: 4 800 page faults, a third of the command's time on this virtual
-    // machine. That memory is mapped beforehand in huge pages (core/huge_pages.hpp): simulate
-    // --law hunt-crossley-ln --json 0.17 -> 0.12-0.13 s, 1 800 faults (1 KB per impact: 0.15 s,
-    // 3 300), peak memory 28 -> 30 MB. Short simulations (under ~2 000 impacts) map nothing.
-    PrefaultHeap(sim.impacts.size() * 2048);
     std::cout << DumpJson(SimulationJson(scene, *law, p, sim), 2) << "\n";
   } else if (f.csv) {
     PrintCsv(sim);

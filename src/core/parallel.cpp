@@ -1,16 +1,15 @@
-// A fixed set of independent tasks on a few threads. See include/bouncecal/core/parallel.hpp.
+// Independent tasks on a few threads: the process's executor. See
+// include/bouncecal/core/parallel.hpp.
 #include "bouncecal/core/parallel.hpp"
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <exception>
+#include <mutex>
 #include <thread>
 #include <vector>
-
-#if defined(__x86_64__) || defined(__i386__)
-#include <immintrin.h>
-#endif
 
 namespace bouncecal {
 
@@ -20,130 +19,151 @@ int ResolveThreads(int requested) {
   return std::clamp(static_cast<int>(n), 1, kMaxAutoThreads);
 }
 
-int StageThreads(int requested, const std::function<int()>& available) {
-  const int threads = ResolveThreads(requested);
-  if (threads <= 1 || !available) return threads;
-  return std::clamp(available(), 1, threads);
-}
-
 namespace {
 
-// A spinning thread's pause (x86: lets the other hyperthread of the core run, and saves power).
-inline void SpinPause() {
-#if defined(__x86_64__) || defined(__i386__)
-  _mm_pause();
-#endif
-}
+// A blocking pool (as Ceres' ThreadPool): a queue of closures and threads that sleep on a
+// condition variable until one comes. It grows to the most threads asked for and keeps them
+// until the process ends. A queued closure is a job (StartJob) or a share of a ParallelFor call
+// (a loop that takes that call's next index until none is left); a ParallelFor caller that waits
+// for its last tasks runs queued shares meanwhile, never jobs.
+class Executor {
+ public:
+  static Executor& Instance() {
+    static Executor executor;
+    return executor;
+  }
+
+  ~Executor() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    for (std::thread& t : threads_) t.join();
+  }
+
+  // Queues `count` copies of a closure (count shares, or one job), with at least `threads`
+  // threads to run them.
+  void Enqueue(std::function<void()> closure, std::size_t count, bool share, int threads) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      while (static_cast<int>(threads_.size()) < threads) threads_.emplace_back([this] { Work(); });
+      for (std::size_t i = 0; i < count; ++i) queue_.push_back({closure, share});
+    }
+    wake_.notify_all();  // idle threads and waiting callers
+  }
+
+  // Runs queued shares until done() holds; sleeps while there are none.
+  void WaitHelping(const std::function<bool()>& done) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      if (done()) return;
+      const auto share =
+          std::find_if(queue_.begin(), queue_.end(), [](const Queued& q) { return q.share; });
+      if (share == queue_.end()) {
+        ++waiting_;
+        wake_.wait(lock);
+        --waiting_;
+        continue;
+      }
+      const std::function<void()> closure = std::move(share->closure);
+      queue_.erase(share);
+      lock.unlock();
+      closure();
+      lock.lock();
+    }
+  }
+
+  // Wakes the callers in WaitHelping (a call's last task has finished).
+  void NotifyDone() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (waiting_ > 0) wake_.notify_all();
+  }
+
+ private:
+  struct Queued {
+    std::function<void()> closure;
+    bool share = false;
+  };
+
+  Executor() = default;
+
+  void Work() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      wake_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+      if (stop_) return;
+      const std::function<void()> closure = std::move(queue_.front().closure);
+      queue_.pop_front();
+      lock.unlock();
+      closure();
+      lock.lock();
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable wake_;  // a closure queued, a call done, or the end
+  std::deque<Queued> queue_;
+  std::vector<std::thread> threads_;
+  int waiting_ = 0;  // callers asleep in WaitHelping
+  bool stop_ = false;
+};
+
+// One ParallelFor call, shared with the shares queued for it (a share may start after the call
+// has returned: it then finds no index left and touches nothing else).
+struct Call {
+  std::size_t n = 0;
+  const std::function<void(std::size_t)>* task = nullptr;
+  std::atomic<std::size_t> next{0};
+  std::atomic<std::size_t> finished{0};
+  std::vector<std::exception_ptr> errors;
+
+  void RunShare() {
+    for (std::size_t i = next++; i < n; i = next++) {
+      try {
+        (*task)(i);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+      if (finished.fetch_add(1) + 1 == n) Executor::Instance().NotifyDone();
+    }
+  }
+};
 
 }  // namespace
 
-WorkerPool::WorkerPool(int threads) {
-  const int n = std::max(1, threads) - 1;
-  workers_.reserve(static_cast<std::size_t>(n));
-  for (int i = 0; i < n; ++i) workers_.emplace_back([this, i] { Loop(i); });
-}
-
-WorkerPool::~WorkerPool() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stop_.store(true);
-    generation_.fetch_add(1, std::memory_order_release);
-  }
-  wake_.notify_all();
-  for (std::thread& t : workers_) t.join();
-}
-
-void WorkerPool::Loop(int index) {
-  std::uint64_t seen = 0;
-  for (;;) {
-    // The next call: spin for kSpinMicroseconds, then sleep until it comes.
-    const auto until =
-        std::chrono::steady_clock::now() + std::chrono::microseconds(kSpinMicroseconds);
-    std::uint64_t now = generation_.load(std::memory_order_acquire);
-    for (int spins = 1; now == seen; ++spins) {
-      if (spins % 64 == 0 && std::chrono::steady_clock::now() > until) {
-        std::unique_lock<std::mutex> lock(mutex_);
-        ++sleeping_;
-        wake_.wait(lock, [&] { return generation_.load(std::memory_order_acquire) != seen; });
-        --sleeping_;
-      } else {
-        SpinPause();
-      }
-      now = generation_.load(std::memory_order_acquire);
-    }
-    seen = now;
-    if (stop_.load()) return;
-    // Every worker answers every call, taking part or not, so that the next call's fields are
-    // not written while one still reads this call's.
-    if (index < participants_ - 1) (*body_)();
-    pending_.fetch_sub(1, std::memory_order_acq_rel);
-  }
-}
-
-bool WorkerPool::TryRun(int participants, const std::function<void()>& body) {
-  bool idle = false;
-  if (!busy_.compare_exchange_strong(idle, true)) return false;
-  const int n = std::clamp(participants, 1, threads());
-  body_ = &body;
-  participants_ = n;
-  pending_.store(static_cast<int>(workers_.size()), std::memory_order_relaxed);
-  bool wake = false;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    generation_.fetch_add(1, std::memory_order_release);  // publishes body_ and participants_
-    wake = sleeping_ > 0;
-  }
-  if (wake) wake_.notify_all();
-  body();
-  // The workers' shares end about when this thread's does (the tasks are taken one by one); a
-  // worker that was asleep answers once it wakes.
-  for (int spins = 1; pending_.load(std::memory_order_acquire) != 0; ++spins) {
-    if (spins % 1024 == 0)
-      std::this_thread::yield();
-    else
-      SpinPause();
-  }
-  busy_.store(false, std::memory_order_release);
-  return true;
-}
-
-void ParallelFor(int threads, std::size_t n, const std::function<void(std::size_t)>& task,
-                 WorkerPool* pool) {
+void ParallelFor(int threads, std::size_t n, const std::function<void(std::size_t)>& task) {
   const std::size_t workers =
       std::min<std::size_t>(n, static_cast<std::size_t>(std::max(1, threads)));
   if (workers <= 1) {
     for (std::size_t i = 0; i < n; ++i) task(i);
     return;
   }
-  std::vector<std::exception_ptr> errors(n);
-  std::atomic<std::size_t> next{0};
-  const std::function<void()> work = [&]() {
-    for (std::size_t i = next++; i < n; i = next++) {
-      try {
-        task(i);
-      } catch (...) {
-        errors[i] = std::current_exception();
-      }
-    }
-  };
-  if (pool == nullptr || !pool->TryRun(static_cast<int>(workers), work)) {
-    std::vector<std::thread> started;
-    started.reserve(workers - 1);
-    for (std::size_t t = 1; t < workers; ++t) started.emplace_back(work);
-    work();
-    for (std::thread& t : started) t.join();
-  }
-  for (const std::exception_ptr& e : errors)
-    if (e) std::rethrow_exception(e);
+  auto call = std::make_shared<Call>();
+  call->n = n;
+  call->task = &task;
+  call->errors.resize(n);
+  Executor& executor = Executor::Instance();
+  executor.Enqueue([call] { call->RunShare(); }, workers - 1, true, static_cast<int>(workers) - 1);
+  call->RunShare();
+  executor.WaitHelping([&] { return call->finished.load() == n; });
+  // The exceptions are released here, not by whichever thread drops the call last.
+  std::exception_ptr first;
+  for (std::exception_ptr& e : call->errors)
+    if (e && !first) first = e;
+  call->errors.clear();
+  if (first) std::rethrow_exception(first);
 }
 
 void ParallelForGroups(int threads, std::size_t n, std::size_t group,
-                       const std::function<void(std::size_t, std::size_t)>& task,
-                       WorkerPool* pool) {
+                       const std::function<void(std::size_t, std::size_t)>& task) {
   const std::size_t g = std::max<std::size_t>(1, group);
-  ParallelFor(
-      threads, (n + g - 1) / g, [&](std::size_t i) { task(i * g, std::min(n, (i + 1) * g)); },
-      pool);
+  ParallelFor(threads, (n + g - 1) / g,
+              [&](std::size_t i) { task(i * g, std::min(n, (i + 1) * g)); });
+}
+
+void StartJob(int threads, std::function<void()> job) {
+  Executor::Instance().Enqueue(std::move(job), 1, false, std::max(1, threads));
 }
 
 }  // namespace bouncecal

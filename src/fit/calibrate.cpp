@@ -9,9 +9,9 @@
 #include <iomanip>
 #include <limits>
 #include <sstream>
-#include <thread>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/parallel.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "fit/calibrate_stages.hpp"
 #include "fit/text.hpp"
@@ -296,23 +296,9 @@ std::vector<LawComparisonRow> CompareLaws(const std::vector<CalibrationInput>& r
   for (size_t i = 0; i < todo.size(); ++i) order[i] = i, rank[i] = cost_rank(todo[i]);
   std::stable_sort(order.begin(), order.end(),
                    [&](size_t a, size_t b) { return rank[a] > rank[b]; });
-  std::atomic<size_t> next{0};
-  const int n = std::max(1, std::min<int>(jobs, static_cast<int>(todo.size())));
-  // A law's fit may spread its contacts over the workers that have no law left to fit
-  // (CalibrationOptions::available_threads): the slow fits started first get the cores the
-  // short ones leave, without more threads than cores while the others still run.
-  std::atomic<int> running{n};
-  for (Job& job : todo) {
-    job.options.available_threads = [&running, n] { return n - running.load() + 1; };
-  }
-  auto worker = [&]() {
-    for (size_t i = next++; i < todo.size(); i = next++) run(todo[order[i]]);
-    --running;
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < n; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+  // A law's fit spreads its simulated contacts over the same threads (ForEachSpeed): those
+  // that have no law left to fit take them, so the slow fits started first end sooner.
+  ParallelFor(jobs, todo.size(), [&](size_t i) { run(todo[order[i]]); });
 
   std::vector<LawComparisonRow> rows;
   for (auto& j : todo) rows.push_back(std::move(j.row));

@@ -199,10 +199,7 @@ void ForEachSpeed(const FitProblem& fp, std::size_t n, int contacts,
   const LawSetup& s = fp.setup;
   const double steps = static_cast<double>(n) * contacts * s.contact_steps;
   const bool spread = !s.has_closed_e && s.concurrent && steps >= kSpreadSteps;
-  int threads = spread ? fp.options.threads : 1;
-  if (threads > 1 && fp.options.available_threads)
-    threads = std::clamp(fp.options.available_threads(), 1, threads);
-  ParallelFor(threads, n, task);
+  ParallelFor(spread ? fp.options.threads : 1, n, task);
 }
 
 double ModelRestitution(const LawSetup& s, const std::vector<double>& p, double v_m_s, double g,

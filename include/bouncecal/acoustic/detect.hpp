@@ -18,7 +18,6 @@
 // message says why: no candidates, intervals that do not shrink, members removed...).
 #pragma once
 
-#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -27,8 +26,6 @@
 #include "bouncecal/core/warning.hpp"
 
 namespace bouncecal {
-
-class WorkerPool;  // core/parallel.hpp
 
 struct Impact {
   double time_s = 0.0;     // refined onset (first arriving sound), s from file start
@@ -82,24 +79,12 @@ struct DetectOptions {
   double max_block_s = 120.0;
   // Threads detection may use, the calling one included (0: the machine's hardware
   // concurrency, at most kMaxAutoThreads, core/parallel.hpp). The blocks of a long recording are
-  // detected concurrently (one more block queued, and the reader reading the next: at most
-  // threads + 2 blocks in memory), each on one thread until the last block is handed out, then
-  // with the threads left idle (available_threads); a single block's independent stages split
-  // among the threads. The result
-  // is the same, to the bit, whatever the count. Default 1: on the 2-core machine two threads
-  // cost 5-15 % more CPU time and gain no wall time when the other core is busy; nearly idle,
-  // they cut a 10-minute recording's wall time from ~1.1 s to ~0.7 s (README, "Long
-  // recordings"). Callers that run several detections at once (a batch on --jobs workers)
-  // need 1.
+  // detected concurrently (at most threads + 2 blocks in memory), a single block's independent
+  // stages split among the threads. The result is the same, to the bit, whatever the count.
+  // Default 1: on a 2-core machine whose other core is busy two threads gain no wall time and
+  // cost CPU time (docs/benchmarks.md). Callers that run several detections at once (a batch
+  // on --jobs workers) need 1.
   int threads = 1;
-  // When set, each stage of a signal's detection uses at most this many of the threads (asked
-  // as it starts, core/parallel.hpp StageThreads): DetectBlocks gives the stages of the
-  // recording's last blocks the workers that have no block left. Not part of the result.
-  std::function<int()> available_threads;
-  // When set, the threads are this pool's (core/parallel.hpp WorkerPool: kept running between
-  // the stages) while it is free; a recording of one block detected with several threads
-  // without one gets a pool of its own. Not part of the result.
-  WorkerPool* pool = nullptr;
   bool IsValid(std::string* error) const;
 };
 

@@ -5,10 +5,9 @@
 // detector therefore works on the *whitened* signal: one linear predictor (order ~32) fitted to
 // the whole recording (Levinson-Durbin on the autocorrelation) predicts the stationary ringing
 // away; its prediction error keeps the clicks. On the whitened signal:
-//   1. a short-hop STFT (four frames per transform, src/acoustic/power_spectra.hpp; FFTW past
-//      256 points, plans made once in the constructor and reused) gives a relative spectral
-//      flux: the half-wave rectified per-bin power increase divided by the previous frame's
-//      power (level-independent), in dB;
+//   1. a short-hop STFT (FFTW, plans made once in the constructor and reused) gives a relative
+//      spectral flux: the half-wave rectified per-bin power increase divided by the previous
+//      frame's power (level-independent), in dB;
 //   2. an adaptive threshold (running median + k * MAD) and peak picking with a minimum gap give
 //      coarse onsets;
 //   3. each onset is refined on the waveform with an AIC change-point picker (Maeda 1985;
@@ -59,12 +58,6 @@ struct OnsetOptions {
   // Threads Detect may use (0: hardware concurrency, core/parallel.hpp); the onsets do not depend
   // on the count. One OnsetDetector may serve several threads' Detect calls at once.
   int threads = 1;
-  // When set, each stage uses at most this many of them (asked as it starts,
-  // core/parallel.hpp StageThreads). Not part of the result.
-  std::function<int()> available_threads;
-  // When set, the threads are this pool's (core/parallel.hpp WorkerPool: kept running between
-  // the stages) while it is free. Not part of the result.
-  WorkerPool* pool = nullptr;
   bool IsValid(std::string* error) const;
 };
 
@@ -107,8 +100,7 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 // does not depend on where x starts beyond the audio cut off) and returns the prediction error
 // (same length; the first `order` samples use the available past). `threads` share the work;
 // the result does not depend on their number.
-std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1,
-                          WorkerPool* pool = nullptr);
+std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1);
 
 // Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
 // hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).
@@ -165,26 +157,27 @@ class OnsetDetector {
   int window_samples() const { return window_; }
   // The STFT hop a detector with these options uses at rate_hz (samples, a power of two).
   static int HopSamples(const OnsetOptions& options, double rate_hz);
-  // Heap bytes Detect allocates at most at once for a signal of `samples` (its whitened copy,
-  // per-frame arrays, the template correlation's chunks; not the samples themselves): what a
-  // caller may have PrefaultHeap (src/core/huge_pages.hpp) map beforehand.
-  static std::size_t WorkingBytes(const OnsetOptions& options, double rate_hz, std::size_t samples);
 
  private:
-  // The threads the stage starting now may use (OnsetOptions::threads, available_threads).
+  // The threads a stage may use (OnsetOptions::threads resolved).
   int Threads() const;
-  // The stages of Detect, in order.
+  // The stages of Detect, in order, each in a file of its own: whitening (Whiten,
+  // whitening.cpp), then
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
-  std::vector<double> Novelty(const std::vector<float>& whitened) const;    // 1. flux, dB
-  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // 2. adaptive
+  std::vector<double> Novelty(const std::vector<float>& whitened) const;  // flux, dB (novelty.cpp)
+  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // adaptive (peaks.cpp)
   double BlockThreshold(const std::vector<double>& novelty, std::size_t centre, std::size_t win,
                         SlidingSample* window) const;
   std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
-                                 const std::vector<double>& threshold) const;  // 3. frames
-  // 4. AIC refinement and measures at a coarse onset sample.
+                                 const std::vector<double>& threshold) const;  // frames (peaks.cpp)
+  // AIC refinement and measures at each peak's coarse onset (aic.cpp); *window_lo, *window_hi:
+  // the onset samples each one's AIC window spans.
+  std::vector<Impact> RefinePeaks(const std::vector<float>& samples,
+                                  const std::vector<std::size_t>& peaks, const OnsetResult& res,
+                                  std::vector<long>* window_lo, std::vector<long>* window_hi) const;
   Impact Refine(const std::vector<float>& samples, const OnsetResult& res, std::size_t centre,
                 bool tight) const;
-  // 5. Template pass: build, score, time the clear matches, search blind.
+  // Template pass: build, score, time the clear matches, search blind (template_search.cpp).
   struct TemplateMatch;
   struct NccWindow;
   struct NccChunks;

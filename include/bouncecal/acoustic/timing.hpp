@@ -112,12 +112,6 @@ struct TimingOptions {
   // Threads TimeSequence may use (0: hardware concurrency, core/parallel.hpp): its members are
   // timed independently; the result does not depend on the count.
   int threads = 1;
-  // When set, at most this many of them (asked as each pass starts, core/parallel.hpp
-  // StageThreads). Not part of the result.
-  std::function<int()> available_threads;
-  // When set, the threads are this pool's (core/parallel.hpp WorkerPool: kept running between
-  // the stages) while it is free. Not part of the result.
-  WorkerPool* pool = nullptr;
   bool IsValid(std::string* error) const;
 };
 

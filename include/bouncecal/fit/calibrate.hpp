@@ -102,10 +102,6 @@ struct CalibrationOptions {
   // The result does not depend on it (each contact is computed as on one thread). The
   // expression law (its parser keeps state) always uses one.
   int threads = 1;
-  // When set, at most this many of them at a time (read at each evaluation): CompareLaws gives
-  // a law the cores no other law's fit is using, so that the laws run concurrently do not
-  // oversubscribe the machine. Not part of the result.
-  std::function<int()> available_threads;
   // Number of points of the e(v) table over the measured speed range.
   int e_of_v_points = 8;
   // A free parameter whose relative 1-sigma exceeds this (or that lies in the numerical null

@@ -12,6 +12,7 @@
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "bouncecal/core/stats.hpp"
 
 namespace bouncecal {
 namespace {
@@ -253,9 +254,7 @@ double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, dou
     p.push_back(std::fabs(acc));
   }
   if (p.size() < 8) return 0.0;
-  const auto mid = p.begin() + static_cast<std::ptrdiff_t>(p.size() / 2);
-  std::nth_element(p.begin(), mid, p.end());
-  return 1.4826 * *mid;
+  return 1.4826 * UpperMedian(std::move(p));
 }
 
 // Normalised cross-correlation of the template h (energy hh) with nb at template start l.
@@ -621,15 +620,8 @@ SlipFit FitSlips(std::vector<double> r, double width, const TimingOptions& o) {
   f.width = width;
   if (r.size() < kMinSlipMembers) return f;
   const double n = static_cast<double>(r.size());
-  auto median = [](std::vector<double> v) {
-    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    return *mid;
-  };
-  f.mu = median(r);
-  std::vector<double> dev;
-  for (double x : r) dev.push_back(std::fabs(x - f.mu));
-  f.sigma_aic = std::max(kMinAicSigma, 1.4826 * median(dev));
+  f.mu = UpperMedian(r);
+  f.sigma_aic = std::max(kMinAicSigma, 1.4826 * MedianAbsoluteDeviation(r, f.mu));
   f.prior = o.slip_prior;
   // The prior share stays within [1/(2n), 1/2]: at least half a member may have slipped (none
   // seen is not proof of none), and the Gaussian is the majority by definition.
@@ -687,9 +679,7 @@ double ShapeMismatch(const std::vector<MemberTime>& mts, const std::vector<Timin
     w.push_back(std::max(0.0, 1.0 - d.ncc * d.ncc - noise_share));
   }
   if (w.empty()) return 0.0;
-  const auto mid = w.begin() + static_cast<std::ptrdiff_t>(w.size() / 2);
-  std::nth_element(w.begin(), mid, w.end());
-  return *mid;
+  return UpperMedian(std::move(w));
 }
 
 void SlipModel(const std::vector<double>& own_aic, const std::vector<double>& own_spread,
@@ -883,13 +873,8 @@ TimingResult TimeSequence(const std::vector<float>& x, double rate_hz, Sequence*
     full.push_back(imps[k].sigma_s);
   }
   if (!shape.empty()) {
-    auto median = [](std::vector<double> v) {
-      const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-      std::nth_element(v.begin(), mid, v.end());
-      return *mid;
-    };
-    const double m_full = 1.25 * median(full) / std::sqrt(static_cast<double>(full.size()));
-    imps[tk].sigma_s = std::max(imps[tk].sigma_s, std::hypot(median(shape), m_full));
+    const double m_full = 1.25 * UpperMedian(full) / std::sqrt(static_cast<double>(full.size()));
+    imps[tk].sigma_s = std::max(imps[tk].sigma_s, std::hypot(UpperMedian(shape), m_full));
   }
   return res;
 }

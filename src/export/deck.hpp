@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/export/export.hpp"
 #include "bouncecal/export/mapping.hpp"
 
@@ -29,8 +30,6 @@ struct DeckInput {
   double packing_restitution = 0.0;  // pairwise e the packing uses (the fit's, see export.cpp)
 };
 
-// Shortest text that reads back to the same double.
-std::string Num(double v);
 // Comment lines with a prefix ("# ").
 std::string CommentBlock(const std::vector<std::string>& lines, const std::string& prefix);
 

@@ -13,6 +13,7 @@
 
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
 #include "bouncecal/physics/law_registry.hpp"
@@ -22,8 +23,6 @@
 namespace bouncecal {
 
 namespace exporter {
-
-std::string Num(double v) { return ShortestNumber(v); }
 
 PackingScene::PackingScene(double restitution) {
   const double le = std::log(restitution);
@@ -44,7 +43,6 @@ std::string CommentBlock(const std::vector<std::string>& lines, const std::strin
 namespace {
 
 using exporter::DeckInput;
-using exporter::Num;
 namespace fs = std::filesystem;
 
 // Trace samples at most every 0.2 ms of simulated time (issue 12).
@@ -205,7 +203,7 @@ RunPlan PlanBounce(const Scene& scene, const ContactLaw& law, int impacts, doubl
 
 std::string LawSummary(const Scene& s) {
   std::string out = s.law.name + ":";
-  for (const auto& [k, v] : s.law.parameters) out += " " + k + " = " + Num(v);
+  for (const auto& [k, v] : s.law.parameters) out += " " + k + " = " + FormatShortest(v);
   return out;
 }
 
@@ -218,19 +216,21 @@ std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult&
   c.push_back("fitted law  " + in.law_summary);
   c.push_back("native law  " + m.native_law + "  [" + m.kind + "]");
   std::string coeffs = "coefficients";
-  for (const auto& [k, v] : m.coefficients) coeffs += " " + k + " = " + Num(v);
+  for (const auto& [k, v] : m.coefficients) coeffs += " " + k + " = " + FormatShortest(v);
   c.push_back(coeffs);
-  c.push_back("mapping: max |e_native - e_fit| = " + Num(m.max_e_error) +
-              ", max contact-time error " + Num(m.max_contact_time_error) + " (relative), over " +
-              Num(m.speeds_m_s.front()) + " .. " + Num(m.speeds_m_s.back()) + " m/s");
-  c.push_back("ball: R = " + Num(in.radius_m) + " m, m = " + Num(in.mass_kg) + " kg (density " +
-              Num(in.density_kg_m3) + " kg/m^3), rigid plane z = 0, g = " + Num(in.g_m_s2) +
-              " m/s^2");
-  c.push_back("time step " + Num(ts.dt_s) + " s = shortest contact time " + Num(ts.contact_time_s) +
-              " s / " + Num(ts.steps_per_contact) +
+  c.push_back("mapping: max |e_native - e_fit| = " + FormatShortest(m.max_e_error) +
+              ", max contact-time error " + FormatShortest(m.max_contact_time_error) +
+              " (relative), over " + FormatShortest(m.speeds_m_s.front()) + " .. " +
+              FormatShortest(m.speeds_m_s.back()) + " m/s");
+  c.push_back("ball: R = " + FormatShortest(in.radius_m) + " m, m = " + FormatShortest(in.mass_kg) +
+              " kg (density " + FormatShortest(in.density_kg_m3) +
+              " kg/m^3), rigid plane z = 0, g = " + FormatShortest(in.g_m_s2) + " m/s^2");
+  c.push_back("time step " + FormatShortest(ts.dt_s) + " s = shortest contact time " +
+              FormatShortest(ts.contact_time_s) + " s / " + FormatShortest(ts.steps_per_contact) +
               " (halved from t_c/50 until the e error of the simulators' leapfrog, measured on "
               "16 contact phases at the slowest and fastest speed, is <= " +
-              Num(in.options.time_step_e_error) + "): e error " + Num(ts.e_error) +
+              FormatShortest(in.options.time_step_e_error) + "): e error " +
+              FormatShortest(ts.e_error) +
               (ts.floor ? " (halving stopped: a smaller step no longer reduced it)" : ""));
   for (const std::string& n : m.notes) c.push_back("note: " + n);
   for (const std::string& n : r.notes) {
@@ -331,7 +331,8 @@ std::string RunScript(const DeckInput& in) {
        << "[ -s packing.dump ] || { echo \"run.sh: " << prog
        << " wrote no packing.dump\" >&2; exit 1; }\n"
        << "echo \"density,spheres_in_slab,spheres,wall_time_s,ranks\"\n"
-       << "printf '%s,%s,%s\\n' \"$(awk -v lo=" << Num(kSlabLow_m) << " -v hi=" << Num(kSlabHigh_m)
+       << "printf '%s,%s,%s\\n' \"$(awk -v lo=" << FormatShortest(kSlabLow_m)
+       << " -v hi=" << FormatShortest(kSlabHigh_m)
        << " -v Rc=0.1 -f packing.awk packing.dump)\" \"$(echo \"$end - $start\" | "
           "awk '{printf \"%.2f\", $1 - $3}')\" \"${NP:-1}\"\n";
     return os.str();
@@ -350,7 +351,7 @@ std::string RunScript(const DeckInput& in) {
   os << "  exit 1\n"
      << "fi\n"
      << "[ -s trace.csv ] || { echo \"run.sh: " << prog << " wrote no trace.csv\" >&2; exit 1; }\n"
-     << "awk -F, -v R=" << Num(in.radius_m) << " -v g=" << Num(in.g_m_s2)
+     << "awk -F, -v R=" << FormatShortest(in.radius_m) << " -v g=" << FormatShortest(in.g_m_s2)
      << " -f impacts.awk trace.csv > impacts.csv.tmp\n"
      << "mv impacts.csv.tmp impacts.csv\n"
      << "n=$(($(wc -l < impacts.csv) - 1))\n"
@@ -436,20 +437,21 @@ bool ExportOptions::IsValid(std::string* error) const {
     return fail("impacts = " + std::to_string(impacts) + " must be in [1, 10000]");
   }
   if (!(time_step_e_error > 0.0 && time_step_e_error < 0.1)) {
-    return fail("time_step_e_error = " + Num(time_step_e_error) + " must be in (0, 0.1)");
+    return fail("time_step_e_error = " + FormatShortest(time_step_e_error) +
+                " must be in (0, 0.1)");
   }
   if (!(max_e_error > 0.0 && max_e_error <= 0.01)) {
-    return fail("max_e_error = " + Num(max_e_error) + " must be in (0, 0.01]");
+    return fail("max_e_error = " + FormatShortest(max_e_error) + " must be in (0, 0.01]");
   }
   if (packing_particles < 1 || packing_particles > 1000000) {
     return fail("packing_particles = " + std::to_string(packing_particles) +
                 " must be in [1, 1e6]");
   }
   if (!(packing_time_s > 0.0 && packing_time_s <= 100.0)) {
-    return fail("packing_time_s = " + Num(packing_time_s) + " must be in (0, 100]");
+    return fail("packing_time_s = " + FormatShortest(packing_time_s) + " must be in (0, 100]");
   }
   if (!(packing_restitution == 0.0 || (packing_restitution > 0.0 && packing_restitution < 1.0))) {
-    return fail("packing_restitution = " + Num(packing_restitution) +
+    return fail("packing_restitution = " + FormatShortest(packing_restitution) +
                 " must be in (0, 1), or 0 for the fit's");
   }
   if (scene == ExportScene::kPacking && target == ExportTarget::kYade) {
@@ -465,25 +467,12 @@ static nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law
   return LawJson(law, law.ParameterValues(), scene.law.expression);
 }
 
-ExportResult ExportDeck(const std::string& params_path, const std::string& out_dir,
-                        const ExportOptions& options) {
-  std::string why;
-  if (!options.IsValid(&why)) throw Error(ErrorCode::kUsage, "export: " + why);
-  // Stage 1: the parameter file, its fit outcome, the replay scene, the output directory.
-  const ParamFile pf = ReadParamFile(params_path);
-  CheckOutcome(pf, params_path, options.force);
-  CheckDirectory(out_dir, options.force);
-  const Replay replay = ReplayFromParamFile(pf, params_path);
-  const Scene& scene = replay.scene;
-  const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
-  const ContactBody body = BodyFromScene(scene);
-  const double g = scene.EffectiveGravity();
+namespace {
 
-  ExportResult r;
-  r.target = ExportTargetName(options.target);
-  r.scene = ExportSceneName(options.scene);
-  r.law = scene.law.name;
-  r.law_json = ExportedLawJson(pf, *law, scene);
+// The simulator version the deck is written for, and what of the scene it leaves out.
+void NoteSimulatorAndScene(const ExportOptions& options, const Scene& scene, double g,
+                           ExportResult* out) {
+  ExportResult& r = *out;
   r.simulator_version = options.simulator_version;
   if (r.simulator_version.empty()) r.simulator_version = DetectSimulatorVersion(options.target);
   const std::string verified = VerifiedSimulatorVersion(options.target);
@@ -503,83 +492,47 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   if (scene.effects.surface_compliance) {
     r.notes.push_back("surface compliance is not exported: the wall is rigid");
   }
-  if (scene.effects.buoyancy) r.notes.push_back("buoyancy: gravity set to g_eff = " + Num(g));
+  if (scene.effects.buoyancy)
+    r.notes.push_back("buoyancy: gravity set to g_eff = " + FormatShortest(g));
+}
 
-  // Stage 2: the mapping over the measured speeds; refuse an approximation unless allowed.
-  std::vector<double> speeds = MappingSpeeds(replay, *law);
-  std::sort(speeds.begin(), speeds.end());
-  const Mapping m = MapLaw(scene, speeds, options.target);
-  if (m.max_e_error > options.max_e_error && !options.allow_approximation) {
-    throw Error(ErrorCode::kBadParameter,
-                params_path + ": law " + m.law + " cannot be expressed in " + r.target +
-                    " within e error " + Num(options.max_e_error) + ": the closest native law (" +
-                    m.native_law + ") is off by " + Num(m.max_e_error) + " over " +
-                    Num(speeds.front()) + " .. " + Num(speeds.back()) +
-                    " m/s; not exported (ExportOptions::allow_approximation accepts it)");
-  }
-  r.native_law = m.native_law;
-  r.kind = m.kind;
-  r.exact = m.exact;
-  r.max_e_error = m.max_e_error;
-  r.max_contact_time_error = m.max_contact_time_error;
-  r.coefficients = m.coefficients;
-  r.speeds_m_s = speeds;
-
-  // Stage 3: time step and run length.
-  DeckInput in;
-  in.mapping = m;
-  in.options = options;
-  in.params_path = params_path;
-  in.law_summary = LawSummary(scene);
-  in.radius_m = scene.ball.Radius();
-  in.mass_kg = scene.ball.Mass();
-  in.density_kg_m3 = in.mass_kg / scene.ball.Volume();
-  const double nu = scene.ball.ResolvedPoissonRatio();
-  in.poisson_ratio = std::isfinite(nu) ? nu : 0.3;
-  in.g_m_s2 = g;
+// The packing scene's time step: linear springs k_n = 1e7 N/m between 1 cm steel spheres
+// (m* = m/2) with the fit's e at the middle measured speed.
+TimeStep PackingTimeStep(const ContactLaw& law, const ContactBody& body,
+                         const std::vector<double>& speeds, const ExportOptions& options,
+                         DeckInput* deck, ExportResult* out) {
+  ExportResult& r = *out;
+  DeckInput& in = *deck;
   TimeStep ts;
-  if (options.scene == ExportScene::kBounce) {
-    ts = ChooseTimeStep(m, body, g, options.time_step_e_error);
-    const RunPlan plan = PlanBounce(scene, *law, options.impacts, g);
-    in.release_height_m = plan.release_height_m;
-    r.run_time_s = plan.run_time_s;
-  } else {
-    // Packing: linear springs k_n = 1e7 N/m between 1 cm steel spheres (m* = m/2) with the fit's
-    // e at the middle measured speed.
-    const size_t mid = speeds.size() / 2;
-    in.packing_restitution =
-        options.packing_restitution > 0.0
-            ? options.packing_restitution
-            : SimulateContact(*law, law->ParameterValues(), body, speeds[mid], 0.0).restitution;
-    const double m_sphere = 7800.0 * M_PI * 1e-6 / 6.0;
-    const double le = std::log(in.packing_restitution);
-    const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
-    const NativeModel pp(NativeForm::kLinear, false, 1e7,
-                         2.0 * zeta * std::sqrt(0.5 * m_sphere * 1e7));
-    const ContactBody pair = ContactBody::BallOnRigidWall(0.5 * m_sphere, 0.005);
-    ts.contact_time_s = pp.ContactTimeAt(pair, 1.0);
-    ts.dt_s = ts.contact_time_s / kPackingStepsPerContact;
-    ts.steps_per_contact = kPackingStepsPerContact;
-    ts.e_error = MaxTimeStepError(pp, pair, {0.1, 2.0}, ts.dt_s, 0.0);
-    r.run_time_s = options.packing_time_s;
-    r.packing_restitution = in.packing_restitution;
-    r.notes.push_back("packing: linear springs k_n = k_s = 1e7 N/m, mu = 0.3, pairwise e = " +
-                      Num(in.packing_restitution) +
-                      (options.packing_restitution > 0.0
-                           ? std::string(" (given, not the fit's)")
-                           : " (the fit's e at " + Num(speeds[mid]) + " m/s)"));
-  }
-  r.time_step_s = ts.dt_s;
-  r.time_step_e_error = ts.e_error;
-  r.steps_per_contact = ts.steps_per_contact;
-  r.steps = static_cast<long>(std::ceil(r.run_time_s / ts.dt_s));
-  r.trace_every = std::max(1, static_cast<int>(std::floor(kTraceInterval_s / ts.dt_s * 1.000001)));
-  in.time_step_s = ts.dt_s;
-  in.steps = r.steps;
-  in.trace_every = r.trace_every;
-  in.comments = HeaderComments(in, r, ts);
+  const size_t mid = speeds.size() / 2;
+  in.packing_restitution =
+      options.packing_restitution > 0.0
+          ? options.packing_restitution
+          : SimulateContact(law, law.ParameterValues(), body, speeds[mid], 0.0).restitution;
+  const double m_sphere = 7800.0 * M_PI * 1e-6 / 6.0;
+  const double le = std::log(in.packing_restitution);
+  const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
+  const NativeModel pp(NativeForm::kLinear, false, 1e7,
+                       2.0 * zeta * std::sqrt(0.5 * m_sphere * 1e7));
+  const ContactBody pair = ContactBody::BallOnRigidWall(0.5 * m_sphere, 0.005);
+  ts.contact_time_s = pp.ContactTimeAt(pair, 1.0);
+  ts.dt_s = ts.contact_time_s / kPackingStepsPerContact;
+  ts.steps_per_contact = kPackingStepsPerContact;
+  ts.e_error = MaxTimeStepError(pp, pair, {0.1, 2.0}, ts.dt_s, 0.0);
+  r.run_time_s = options.packing_time_s;
+  r.packing_restitution = in.packing_restitution;
+  r.notes.push_back("packing: linear springs k_n = k_s = 1e7 N/m, mu = 0.3, pairwise e = " +
+                    FormatShortest(in.packing_restitution) +
+                    (options.packing_restitution > 0.0
+                         ? std::string(" (given, not the fit's)")
+                         : " (the fit's e at " + FormatShortest(speeds[mid]) + " m/s)"));
+  return ts;
+}
 
-  // Stage 4: the files, each written atomically.
+// The deck's files in out_dir, each written atomically, and mapping.json (r: the files' names).
+void WriteDeckFiles(const std::string& out_dir, const std::string& params_path,
+                    const ExportOptions& options, const DeckInput& in, ExportResult* out) {
+  ExportResult& r = *out;
   std::vector<std::pair<std::string, std::string>> files;
   const bool bounce = options.scene == ExportScene::kBounce;
   switch (options.target) {
@@ -612,6 +565,85 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
                   fs::perm_options::add);
   WriteFileAtomically((fs::path(out_dir) / "mapping.json").string(),
                       DumpJson(ExportResultJson(r), 2) + "\n", wo);
+}
+
+}  // namespace
+
+ExportResult ExportDeck(const std::string& params_path, const std::string& out_dir,
+                        const ExportOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw Error(ErrorCode::kUsage, "export: " + why);
+  // Stage 1: the parameter file, its fit outcome, the replay scene, the output directory.
+  const ParamFile pf = ReadParamFile(params_path);
+  CheckOutcome(pf, params_path, options.force);
+  CheckDirectory(out_dir, options.force);
+  const Replay replay = ReplayFromParamFile(pf, params_path);
+  const Scene& scene = replay.scene;
+  const std::unique_ptr<ContactLaw> law = CreateLaw(scene.law, scene);
+  const ContactBody body = BodyFromScene(scene);
+  const double g = scene.EffectiveGravity();
+
+  ExportResult r;
+  r.target = ExportTargetName(options.target);
+  r.scene = ExportSceneName(options.scene);
+  r.law = scene.law.name;
+  r.law_json = ExportedLawJson(pf, *law, scene);
+  NoteSimulatorAndScene(options, scene, g, &r);
+
+  // Stage 2: the mapping over the measured speeds; refuse an approximation unless allowed.
+  std::vector<double> speeds = MappingSpeeds(replay, *law);
+  std::sort(speeds.begin(), speeds.end());
+  const Mapping m = MapLaw(scene, speeds, options.target);
+  if (m.max_e_error > options.max_e_error && !options.allow_approximation) {
+    throw Error(ErrorCode::kBadParameter,
+                params_path + ": law " + m.law + " cannot be expressed in " + r.target +
+                    " within e error " + FormatShortest(options.max_e_error) +
+                    ": the closest native law (" + m.native_law + ") is off by " +
+                    FormatShortest(m.max_e_error) + " over " + FormatShortest(speeds.front()) +
+                    " .. " + FormatShortest(speeds.back()) +
+                    " m/s; not exported (ExportOptions::allow_approximation accepts it)");
+  }
+  r.native_law = m.native_law;
+  r.kind = m.kind;
+  r.exact = m.exact;
+  r.max_e_error = m.max_e_error;
+  r.max_contact_time_error = m.max_contact_time_error;
+  r.coefficients = m.coefficients;
+  r.speeds_m_s = speeds;
+
+  // Stage 3: time step and run length.
+  DeckInput in;
+  in.mapping = m;
+  in.options = options;
+  in.params_path = params_path;
+  in.law_summary = LawSummary(scene);
+  in.radius_m = scene.ball.Radius();
+  in.mass_kg = scene.ball.Mass();
+  in.density_kg_m3 = in.mass_kg / scene.ball.Volume();
+  const double nu = scene.ball.ResolvedPoissonRatio();
+  in.poisson_ratio = std::isfinite(nu) ? nu : 0.3;
+  in.g_m_s2 = g;
+  TimeStep ts;
+  if (options.scene == ExportScene::kBounce) {
+    ts = ChooseTimeStep(m, body, g, options.time_step_e_error);
+    const RunPlan plan = PlanBounce(scene, *law, options.impacts, g);
+    in.release_height_m = plan.release_height_m;
+    r.run_time_s = plan.run_time_s;
+  } else {
+    ts = PackingTimeStep(*law, body, speeds, options, &in, &r);
+  }
+  r.time_step_s = ts.dt_s;
+  r.time_step_e_error = ts.e_error;
+  r.steps_per_contact = ts.steps_per_contact;
+  r.steps = static_cast<long>(std::ceil(r.run_time_s / ts.dt_s));
+  r.trace_every = std::max(1, static_cast<int>(std::floor(kTraceInterval_s / ts.dt_s * 1.000001)));
+  in.time_step_s = ts.dt_s;
+  in.steps = r.steps;
+  in.trace_every = r.trace_every;
+  in.comments = HeaderComments(in, r, ts);
+
+  // Stage 4: the files, each written atomically.
+  WriteDeckFiles(out_dir, params_path, options, in, &r);
   return r;
 }
 

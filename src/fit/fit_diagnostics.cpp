@@ -21,16 +21,12 @@
 #include <iomanip>
 #include <sstream>
 
+#include "bouncecal/core/format.hpp"
+#include "bouncecal/core/stats.hpp"
 #include "fit/calibrate_stages.hpp"
 
 namespace bouncecal::calib {
 namespace {
-
-std::string Fmt(double v, int prec = 3) {
-  std::ostringstream os;
-  os << std::setprecision(prec) << v;
-  return os.str();
-}
 
 // Upper tail of chi2 with 1 or 2 degrees of freedom.
 double Chi2Survival(double chi2, int dof) {
@@ -77,8 +73,7 @@ double TrendChi2(const FitProblem& fp, const Solution& s, int* dof, double* tren
   *trend_rms = std::sqrt(moved.squaredNorm() / n);
   std::vector<double> es;
   for (const auto& pt : fp.data.points) es.push_back(pt.e_sigma);
-  std::nth_element(es.begin(), es.begin() + static_cast<long>(es.size() / 2), es.end());
-  *scale = std::hypot(sigma_s, es[es.size() / 2]);
+  *scale = std::hypot(sigma_s, UpperMedian(es));
   return std::max(ev0.chi2 - ev.chi2, 0.0);
 }
 
@@ -128,10 +123,10 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
       const double pv = Chi2Survival(d.trend_chi2, d.trend_dof);
       if (pv < o.poor_fit_p_value && size > scale) {
         set(FitOutcome::kPoorFit,
-            "the law's e(v) misses the measured trend with speed by " + Fmt(size, 2) +
-                " rms, more than the bounces scatter about that trend (" + Fmt(scale, 2) +
-                "; trend chi2 = " + Fmt(d.trend_chi2, 3) + " for " + std::to_string(d.trend_dof) +
-                " dof, p = " + Fmt(pv, 2) + ")");
+            "the law's e(v) misses the measured trend with speed by " + FormatGeneral(size, 2) +
+                " rms, more than the bounces scatter about that trend (" + FormatGeneral(scale, 2) +
+                "; trend chi2 = " + FormatGeneral(d.trend_chi2, 3) + " for " +
+                std::to_string(d.trend_dof) + " dof, p = " + FormatGeneral(pv, 2) + ")");
       }
     }
   } else {
@@ -140,20 +135,20 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
       const double z = (s.scatter.chi2 - dof) / std::sqrt(2.0 * dof);
       const double pv = 0.5 * std::erfc(z / std::sqrt(2.0));
       if (pv < o.poor_fit_p_value) {
-        set(FitOutcome::kPoorFit, "chi2/dof = " + Fmt(s.scatter.chi2 / dof, 3) +
+        set(FitOutcome::kPoorFit, "chi2/dof = " + FormatGeneral(s.scatter.chi2 / dof, 3) +
                                       " of the impact times with the scatter "
                                       "sigma_s = " +
-                                      Fmt(s.scatter.sigma, 2) +
-                                      " of the restitution fit (p = " + Fmt(pv, 2) +
+                                      FormatGeneral(s.scatter.sigma, 2) +
+                                      " of the restitution fit (p = " + FormatGeneral(pv, 2) +
                                       "): the simulated trajectory does not follow the recording");
       }
     }
   }
   const double ss = s.scatter.sigma, ss_sigma = s.scatter.sigma_sigma;
   if (ss - 2.0 * (std::isfinite(ss_sigma) ? ss_sigma : 0.0) > o.plausible_scatter_e) {
-    set(FitOutcome::kPoorFit, "the scatter of e about the law, " + Fmt(ss, 2) + " +- " +
-                                  Fmt(ss_sigma, 2) + ", exceeds what real balls show (" +
-                                  Fmt(o.plausible_scatter_e, 2) +
+    set(FitOutcome::kPoorFit, "the scatter of e about the law, " + FormatGeneral(ss, 2) + " +- " +
+                                  FormatGeneral(ss_sigma, 2) + ", exceeds what real balls show (" +
+                                  FormatGeneral(o.plausible_scatter_e, 2) +
                                   "): the law does not describe these bounces");
   }
   // Parameters stopped at a bound.
@@ -164,9 +159,9 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
     const double tol = 1e-8 * std::max(std::abs(s.p[i]), su.typical[i]);
     if (s.p[i] <= sp.lower + tol || s.p[i] >= sp.upper - tol) {
       d.warnings.push_back({"fit_at_bound",
-                            sp.name + " = " + Fmt(s.p[i], 4) + " " + sp.unit +
-                                " stopped at its bound [" + Fmt(sp.lower, 3) + ", " +
-                                Fmt(sp.upper, 3) +
+                            sp.name + " = " + FormatGeneral(s.p[i], 4) + " " + sp.unit +
+                                " stopped at its bound [" + FormatGeneral(sp.lower, 3) + ", " +
+                                FormatGeneral(sp.upper, 3) +
                                 "]: the data push it outside the law's physical "
                                 "range; its sigma is one-sided at best",
                             -1});

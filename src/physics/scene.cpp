@@ -7,6 +7,7 @@
 #include <string>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "scene_problem.hpp"
@@ -72,8 +73,6 @@ const MaterialPreset* FindMaterial(const std::string& name) {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-std::string Num(double v) { return ShortestNumber(v); }
 
 }  // namespace
 
@@ -168,17 +167,19 @@ class Checker {
     problem_ = problem;
   }
   void Positive(const std::string& key, double v) {
-    if (!(std::isfinite(v) && v > 0.0)) Fail(key, "must be finite and > 0 (got " + Num(v) + ")");
+    if (!(std::isfinite(v) && v > 0.0))
+      Fail(key, "must be finite and > 0 (got " + FormatShortest(v) + ")");
   }
   void NonNegative(const std::string& key, double v) {
-    if (!(std::isfinite(v) && v >= 0.0)) Fail(key, "must be finite and >= 0 (got " + Num(v) + ")");
+    if (!(std::isfinite(v) && v >= 0.0))
+      Fail(key, "must be finite and >= 0 (got " + FormatShortest(v) + ")");
   }
   void Finite(const std::string& key, double v) {
-    if (!std::isfinite(v)) Fail(key, "must be finite (got " + Num(v) + ")");
+    if (!std::isfinite(v)) Fail(key, "must be finite (got " + FormatShortest(v) + ")");
   }
   void Poisson(const std::string& key, double v) {
     if (!(std::isfinite(v) && v > -1.0 && v <= 0.5)) {
-      Fail(key, "must be in (-1, 0.5] (got " + Num(v) + ")");
+      Fail(key, "must be in (-1, 0.5] (got " + FormatShortest(v) + ")");
     }
   }
   void Material(const std::string& key, const std::string& name, bool all_explicit) {
@@ -235,14 +236,15 @@ void CheckDropDoesNotOverflow(const Scene& s, Checker* checker) {
   const double mass_kg = s.ball.Mass();
   const std::string key = s.drop.impact_speed_m_s ? "drop.impact_speed_m_s" : "drop.height_m";
   const std::string given =
-      s.drop.impact_speed_m_s
-          ? Num(v) + " m/s"
-          : Num(*s.drop.height_m) + " m with environment.g_m_s2 = " + Num(g) + " m/s^2";
+      s.drop.impact_speed_m_s ? FormatShortest(v) + " m/s"
+                              : FormatShortest(*s.drop.height_m) +
+                                    " m with environment.g_m_s2 = " + FormatShortest(g) + " m/s^2";
   if (!std::isfinite(two_g_h)) {
     checker->Fail(key, given + ": the arrival speed sqrt(2 g h) is not a finite number");
   } else if (!std::isfinite(0.5 * mass_kg * v * v)) {
-    checker->Fail(key, given + ": the kinetic energy m v^2 / 2 = " + Num(0.5 * mass_kg * v * v) +
-                           " J is not a finite number (ball mass " + Num(mass_kg) + " kg)");
+    checker->Fail(
+        key, given + ": the kinetic energy m v^2 / 2 = " + FormatShortest(0.5 * mass_kg * v * v) +
+                 " J is not a finite number (ball mass " + FormatShortest(mass_kg) + " kg)");
   } else if (!std::isfinite(2.0 * v / g)) {
     checker->Fail(key, given + ": the flight time 2 v / g is not a finite number");
   }
@@ -261,8 +263,8 @@ void Validate(const Scene& s, Checker* checker) {
   c.Positive("ball.diameter_m", ball.diameter_m);
   if (ball.mass_kg && ball.density_kg_m3) {
     c.Fail("ball.mass_kg", "conflicts with ball.density_kg_m3: give one of them (got mass " +
-                               Num(*ball.mass_kg) + " kg and density " + Num(*ball.density_kg_m3) +
-                               " kg/m^3)");
+                               FormatShortest(*ball.mass_kg) + " kg and density " +
+                               FormatShortest(*ball.density_kg_m3) + " kg/m^3)");
   }
   if (ball.mass_kg) c.Positive("ball.mass_kg", *ball.mass_kg);
   if (ball.density_kg_m3) c.Positive("ball.density_kg_m3", *ball.density_kg_m3);
@@ -294,8 +296,8 @@ void Validate(const Scene& s, Checker* checker) {
   // Drop.
   if (drop.height_m && drop.impact_speed_m_s) {
     c.Fail("drop.impact_speed_m_s", "conflicts with drop.height_m: give one of them (got height " +
-                                        Num(*drop.height_m) + " m and impact speed " +
-                                        Num(*drop.impact_speed_m_s) + " m/s)");
+                                        FormatShortest(*drop.height_m) + " m and impact speed " +
+                                        FormatShortest(*drop.impact_speed_m_s) + " m/s)");
   }
   if (!drop.height_m && !drop.impact_speed_m_s) {
     c.Fail("drop.height_m", "missing: give drop.height_m or drop.impact_speed_m_s");
@@ -307,7 +309,7 @@ void Validate(const Scene& s, Checker* checker) {
     if (!drop.height_m) {
       c.Fail("drop.height_sigma_m",
              "is the uncertainty of drop.height_m, which is not given (got " +
-                 Num(*drop.height_sigma_m) + " m)");
+                 FormatShortest(*drop.height_sigma_m) + " m)");
     }
   }
   c.Finite("drop.first_impact_time_s", drop.first_impact_time_s);
@@ -321,8 +323,8 @@ void Validate(const Scene& s, Checker* checker) {
     const double rho = ball.Density();
     if (!(environment.air_density_kg_m3 < rho)) {
       c.Fail("effects.buoyancy", "ball density must exceed air density for it to fall (got " +
-                                     Num(rho) + " kg/m^3 vs air " +
-                                     Num(environment.air_density_kg_m3) + " kg/m^3)");
+                                     FormatShortest(rho) + " kg/m^3 vs air " +
+                                     FormatShortest(environment.air_density_kg_m3) + " kg/m^3)");
     }
   }
   // Law.

@@ -67,6 +67,7 @@
 #include <toml++/toml.h>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/scene.hpp"
@@ -76,8 +77,6 @@ namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-std::string Num(double v) { return ShortestNumber(v); }
 
 }  // namespace
 
@@ -89,7 +88,7 @@ namespace {
 std::string Describe(const toml::node& node) {
   if (auto s = node.value_exact<std::string>()) return "\"" + *s + "\"";
   if (auto i = node.value_exact<int64_t>()) return std::to_string(*i);
-  if (auto d = node.value_exact<double>()) return Num(*d);
+  if (auto d = node.value_exact<double>()) return FormatShortest(*d);
   if (auto b = node.value_exact<bool>()) return *b ? "true" : "false";
   if (node.is_table()) return "a table";
   if (node.is_array()) return "an array";
@@ -484,7 +483,7 @@ std::vector<std::string> SceneTextKeys(const std::string& toml_text, const std::
 namespace {
 
 std::string TomlFloat(double v) {
-  std::string s = Num(v);
+  std::string s = FormatShortest(v);
   if (s.find_first_of(".eEn") == std::string::npos) s += ".0";  // "2" would read as an integer
   return s;
 }

@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/flight.hpp"
@@ -22,13 +23,6 @@ namespace bouncecal {
 namespace {
 
 using Jet = SensitivityJet;
-
-std::string Num(double v) {
-  std::ostringstream os;
-  os.precision(6);
-  os << v;
-  return os.str();
-}
 
 double Val(double x) { return x; }
 double Val(const Jet& x) { return x.a; }
@@ -84,8 +78,8 @@ ContactRun FromClosedForm(const ContactLaw& law, const ContactOutcome& cf, const
   const double m = body.mass_kg;
   if (cf.stuck || !(cf.restitution > 0.0) || cf.restitution * v_in <= stuck_speed_m_s) {
     r.end = ContactRun::End::kStuck;
-    r.detail =
-        law.Name() + ": closed form gives no rebound (restitution " + Num(cf.restitution) + ")";
+    r.detail = law.Name() + ": closed form gives no rebound (restitution " +
+               FormatGeneral(cf.restitution) + ")";
     r.contact_s = std::isfinite(cf.contact_time_s) ? cf.contact_time_s : 0.0;
     r.work_j = 0.5 * m * v_in * v_in;
     return r;
@@ -156,21 +150,23 @@ bool SimulatorOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(rel_tolerance > 0.0 && rel_tolerance < 1.0)) {
-    return fail("rel_tolerance = " + Num(rel_tolerance) + " must be in (0, 1)");
+    return fail("rel_tolerance = " + FormatGeneral(rel_tolerance) + " must be in (0, 1)");
   }
   if (!(abs_tolerance > 0.0 && abs_tolerance < 1.0)) {
-    return fail("abs_tolerance = " + Num(abs_tolerance) + " must be in (0, 1)");
+    return fail("abs_tolerance = " + FormatGeneral(abs_tolerance) + " must be in (0, 1)");
   }
-  if (rel_tolerance < 1e-15) return fail("rel_tolerance = " + Num(rel_tolerance) + " < 1e-15");
+  if (rel_tolerance < 1e-15)
+    return fail("rel_tolerance = " + FormatGeneral(rel_tolerance) + " < 1e-15");
   if (max_steps_per_contact < 10) {
     return fail("max_steps_per_contact = " + std::to_string(max_steps_per_contact) +
                 " must be >= 10");
   }
   if (!(time_resolution_s >= 0.0) || !std::isfinite(time_resolution_s)) {
-    return fail("time_resolution_s = " + Num(time_resolution_s) + " must be finite and >= 0");
+    return fail("time_resolution_s = " + FormatGeneral(time_resolution_s) +
+                " must be finite and >= 0");
   }
   if (!(stuck_restitution >= 0.0 && stuck_restitution < 1.0)) {
-    return fail("stuck_restitution = " + Num(stuck_restitution) + " must be in [0, 1)");
+    return fail("stuck_restitution = " + FormatGeneral(stuck_restitution) + " must be in [0, 1)");
   }
   return true;
 }
@@ -198,12 +194,12 @@ ContactOutcome SimulateContact(const ContactLaw& law, std::span<const double> pa
   if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "simulator: " + why);
   if (!law.IsValid(params, body, &why)) throw Error(ErrorCode::kBadParameter, why);
   if (!(v_in_m_s > 0.0) || !std::isfinite(v_in_m_s)) {
-    throw Error(ErrorCode::kBadParameter,
-                "impact speed v_in = " + Num(v_in_m_s) + " m/s must be positive and finite");
+    throw Error(ErrorCode::kBadParameter, "impact speed v_in = " + FormatGeneral(v_in_m_s) +
+                                              " m/s must be positive and finite");
   }
   if (!(g_m_s2 >= 0.0) || !std::isfinite(g_m_s2)) {
     throw Error(ErrorCode::kBadParameter,
-                "gravity g = " + Num(g_m_s2) + " m/s^2 must be finite and >= 0");
+                "gravity g = " + FormatGeneral(g_m_s2) + " m/s^2 must be finite and >= 0");
   }
   SimulatorOptions o = options;
   o.gravity_in_contact = true;  // the caller's g is what it asks for
@@ -251,8 +247,8 @@ Setup Prepare(const Scene& scene, const ContactLaw& law, std::span<const double>
       throw Error(ErrorCode::kBadScene,
                   "surface compliance needs surface mass_kg > 0, stiffness_n_m > 0 and "
                   "damping_n_s_m >= 0 (got " +
-                      Num(pm.mass_kg) + ", " + Num(pm.stiffness_n_m) + ", " +
-                      Num(pm.damping_n_s_m) + ")");
+                      FormatGeneral(pm.mass_kg) + ", " + FormatGeneral(pm.stiffness_n_m) + ", " +
+                      FormatGeneral(pm.damping_n_s_m) + ")");
     }
     s.plate = &s.plate_model;
   }
@@ -385,8 +381,8 @@ class BounceRun {
     }
     if (!(vv_ > lim_.rest_speed_m_s) || vv_ == 0.0) {
       Stop(StopReason::kAtRest,
-           "arrival speed " + Num(vv_) + " m/s at impact " + std::to_string(k_) +
-               " is below rest_speed_m_s = " + Num(lim_.rest_speed_m_s),
+           "arrival speed " + FormatGeneral(vv_) + " m/s at impact " + std::to_string(k_) +
+               " is below rest_speed_m_s = " + FormatGeneral(lim_.rest_speed_m_s),
            0.5 * m_ * vv_ * vv_);
       return true;
     }
@@ -434,7 +430,7 @@ class BounceRun {
       en.internal_j += c.internal_end_j;
       const double final_j = c.ball_energy_end_j + c.elastic_end_j + c.plate_end_j;
       const std::string where =
-          " at impact " + std::to_string(k_) + " (t = " + Num(Val(t_)) + " s)";
+          " at impact " + std::to_string(k_) + " (t = " + FormatGeneral(Val(t_)) + " s)";
       if (c.end == ContactRun::End::kStepLimit) {
         Stop(StopReason::kStepLimit, c.detail + where, final_j);
         return true;
@@ -461,9 +457,9 @@ class BounceRun {
     const T v0_sq = v_sep * v_sep - 2.0 * g_ * contact.depth;
     if (!(Val(v0_sq) > 0.0)) {
       Stop(StopReason::kAtRest,
-           "the ball separates " + Num(c.separation_depth_m) + " m below the surface at " +
-               Num(c.v_out_m_s) + " m/s and cannot rise above it (impact " + std::to_string(k_) +
-               ")",
+           "the ball separates " + FormatGeneral(c.separation_depth_m) +
+               " m below the surface at " + FormatGeneral(c.v_out_m_s) +
+               " m/s and cannot rise above it (impact " + std::to_string(k_) + ")",
            0.5 * m_ * Val(v0_sq));
       return true;
     }
@@ -481,7 +477,8 @@ class BounceRun {
       const double final_j = m_ * g_ * h + 0.5 * m_ * vel * vel;
       if (has_drag_) en.dissipated_drag_j += 0.5 * m_ * v0v * v0v - final_j;
       Stop(StopReason::kHorizon,
-           "next impact at " + Num(Val(t_next)) + " s is beyond horizon_s = " + Num(lim_.horizon_s),
+           "next impact at " + FormatGeneral(Val(t_next)) +
+               " s is beyond horizon_s = " + FormatGeneral(lim_.horizon_s),
            final_j);
       return true;
     }
@@ -496,7 +493,7 @@ class BounceRun {
     if (e < 1.0 && Val(flight_s) * e / (1.0 - e) < options_.time_resolution_s) {
       Stop(StopReason::kAtRest,
            "Zeno tail: the remaining flights after impact " + std::to_string(k_) +
-               " last less than time_resolution_s = " + Num(options_.time_resolution_s) +
+               " last less than time_resolution_s = " + FormatGeneral(options_.time_resolution_s) +
                " s in total",
            0.5 * m_ * Val(v_) * Val(v_));
       return true;

@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/bundled_scenes.hpp"
 #include "bouncecal/physics/flight.hpp"
@@ -236,7 +237,7 @@ bool RenderOptions::IsValid(std::string* error) const {
   };
   if (!(sample_rate_hz >= 8000.0 && sample_rate_hz <= 384000.0) ||
       std::fabs(sample_rate_hz - std::round(sample_rate_hz)) > 1e-9) {
-    return fail("sample_rate_hz = " + Num(sample_rate_hz) +
+    return fail("sample_rate_hz = " + FormatGeneral(sample_rate_hz, 10) +
                 " (expected a whole number of Hz from 8000 to 384000)");
   }
   if (channels.empty() || channels.size() > 64) {
@@ -244,24 +245,25 @@ bool RenderOptions::IsValid(std::string* error) const {
   }
   for (std::size_t c = 0; c < channels.size(); ++c) {
     if (!(channels[c].gain > 0.0 && Finite(channels[c].gain))) {
-      return fail("channel " + std::to_string(c) + " gain = " + Num(channels[c].gain) +
-                  " (expected > 0)");
+      return fail("channel " + std::to_string(c) +
+                  " gain = " + FormatGeneral(channels[c].gain, 10) + " (expected > 0)");
     }
     if (!(channels[c].delay_s >= 0.0 && channels[c].delay_s < 1.0)) {
-      return fail("channel " + std::to_string(c) + " delay_s = " + Num(channels[c].delay_s) +
-                  " (expected 0 <= delay < 1 s)");
+      return fail("channel " + std::to_string(c) + " delay_s = " +
+                  FormatGeneral(channels[c].delay_s, 10) + " (expected 0 <= delay < 1 s)");
     }
     if (!(channels[c].mode_spread_db >= 0.0 && channels[c].mode_spread_db <= 40.0)) {
-      return fail("channel " + std::to_string(c) +
-                  " mode_spread_db = " + Num(channels[c].mode_spread_db) + " (expected 0..40 dB)");
+      return fail("channel " + std::to_string(c) + " mode_spread_db = " +
+                  FormatGeneral(channels[c].mode_spread_db, 10) + " (expected 0..40 dB)");
     }
   }
   for (const auto* list : {&plate_modes, &ball_modes}) {
     for (const Mode& m : *list) {
       if (!(m.freq_hz > 0 && Finite(m.freq_hz) && m.decay_s > 0 && m.decay_s <= 10 &&
             Finite(m.gain))) {
-        return fail("mode {" + Num(m.freq_hz) + " Hz, " + Num(m.decay_s) + " s, gain " +
-                    Num(m.gain) + "} (expected freq > 0, 0 < decay <= 10 s, finite gain)");
+        return fail("mode {" + FormatGeneral(m.freq_hz, 10) + " Hz, " +
+                    FormatGeneral(m.decay_s, 10) + " s, gain " + FormatGeneral(m.gain, 10) +
+                    "} (expected freq > 0, 0 < decay <= 10 s, finite gain)");
       }
     }
   }
@@ -272,39 +274,41 @@ bool RenderOptions::IsValid(std::string* error) const {
   if (!audible) return fail("no click and no mode below 0.45 * sample rate: nothing to hear");
   if (!(click_gain >= 0.0 && Finite(click_gain))) return fail("click_gain must be >= 0");
   if (!(amplitude_exponent >= 0.0 && amplitude_exponent <= 4.0)) {
-    return fail("amplitude_exponent = " + Num(amplitude_exponent) + " (expected 0..4)");
+    return fail("amplitude_exponent = " + FormatGeneral(amplitude_exponent, 10) +
+                " (expected 0..4)");
   }
   if (!(peak_level > 0.0 && peak_level <= 1.0)) {
-    return fail("peak_level = " + Num(peak_level) + " (expected 0 < peak <= 1)");
+    return fail("peak_level = " + FormatGeneral(peak_level, 10) + " (expected 0 < peak <= 1)");
   }
   if (snr_db && !(*snr_db > -20.0 && *snr_db < 200.0)) {
-    return fail("snr_db = " + Num(*snr_db) + " (expected -20 < SNR < 200 dB)");
+    return fail("snr_db = " + FormatGeneral(*snr_db, 10) + " (expected -20 < SNR < 200 dB)");
   }
   if (!(hum_hz == 0.0 || (hum_hz >= 10.0 && hum_hz <= 1000.0))) {
-    return fail("hum_hz = " + Num(hum_hz) + " (expected 0 = off, or 10..1000 Hz)");
+    return fail("hum_hz = " + FormatGeneral(hum_hz, 10) + " (expected 0 = off, or 10..1000 Hz)");
   }
-  if (!(hum_db <= 20.0 && Finite(hum_db))) return fail("hum_db = " + Num(hum_db));
+  if (!(hum_db <= 20.0 && Finite(hum_db))) return fail("hum_db = " + FormatGeneral(hum_db, 10));
   if (distractors < 0 || distractors > 10000) {
     return fail("distractors = " + std::to_string(distractors) + " (expected 0..10000)");
   }
   if (!(distractor_db <= 20.0 && Finite(distractor_db))) {
-    return fail("distractor_db = " + Num(distractor_db));
+    return fail("distractor_db = " + FormatGeneral(distractor_db, 10));
   }
   if (clip_level && !(*clip_level > 0.0 && *clip_level <= 1.0)) {
-    return fail("clip_level = " + Num(*clip_level) + " (expected 0 < level <= 1)");
+    return fail("clip_level = " + FormatGeneral(*clip_level, 10) + " (expected 0 < level <= 1)");
   }
   for (const Echo& e : echoes) {
     if (!(e.delay_s > 0.0 && e.delay_s < 1.0 && e.gain >= 0.0 && e.gain <= 1.0)) {
-      return fail("echo {" + Num(e.delay_s) + " s, gain " + Num(e.gain) +
-                  "} (expected 0 < delay < 1 s, 0 <= gain <= 1)");
+      return fail("echo {" + FormatGeneral(e.delay_s, 10) + " s, gain " +
+                  FormatGeneral(e.gain, 10) + "} (expected 0 < delay < 1 s, 0 <= gain <= 1)");
     }
   }
   if (!(latency_s >= 0.0 && latency_s < 1.0)) {
-    return fail("latency_s = " + Num(latency_s) + " (expected 0 <= latency < 1 s)");
+    return fail("latency_s = " + FormatGeneral(latency_s, 10) + " (expected 0 <= latency < 1 s)");
   }
-  if (!(tail_s >= 0.0 && tail_s <= 60.0)) return fail("tail_s = " + Num(tail_s));
+  if (!(tail_s >= 0.0 && tail_s <= 60.0)) return fail("tail_s = " + FormatGeneral(tail_s, 10));
   if (!(duration_s >= 0.0 && duration_s <= 3600.0)) {
-    return fail("duration_s = " + Num(duration_s) + " (expected 0 = auto, or up to 3600 s)");
+    return fail("duration_s = " + FormatGeneral(duration_s, 10) +
+                " (expected 0 = auto, or up to 3600 s)");
   }
   return true;
 }
@@ -327,15 +331,16 @@ double CheckImpacts(const std::vector<std::vector<TruthImpact>>& drops,
       const std::string where =
           "impact " + std::to_string(k) + " of drop " + std::to_string(d) + ": ";
       if (!(i.time_s >= 0.0 && Finite(i.time_s))) {
-        throw Error(ErrorCode::kBadParameter, where + "time_s = " + Num(i.time_s));
+        throw Error(ErrorCode::kBadParameter, where + "time_s = " + FormatGeneral(i.time_s, 10));
       }
       if (!(i.v_in_m_s > 0.0 && Finite(i.v_in_m_s)) || !(i.v_out_m_s >= 0.0) ||
           !Finite(i.v_out_m_s)) {
-        throw Error(ErrorCode::kBadParameter,
-                    where + "speeds " + Num(i.v_in_m_s) + ", " + Num(i.v_out_m_s) + " m/s");
+        throw Error(ErrorCode::kBadParameter, where + "speeds " + FormatGeneral(i.v_in_m_s, 10) +
+                                                  ", " + FormatGeneral(i.v_out_m_s, 10) + " m/s");
       }
       if (!(i.contact_s >= 0.0 && i.contact_s < 0.1)) {
-        throw Error(ErrorCode::kBadParameter, where + "contact_s = " + Num(i.contact_s));
+        throw Error(ErrorCode::kBadParameter,
+                    where + "contact_s = " + FormatGeneral(i.contact_s, 10));
       }
       last_onset = std::max(last_onset, i.time_s);
     }
@@ -353,8 +358,8 @@ double RecordingLength(double last_onset, std::size_t impact_count, const Render
   }
   if (options.duration_s > 0 && last_onset >= options.duration_s) {
     throw Error(ErrorCode::kBadParameter,
-                "render options: duration_s = " + Num(options.duration_s) +
-                    " ends before the last impact at " + Num(last_onset) + " s");
+                "render options: duration_s = " + FormatGeneral(options.duration_s, 10) +
+                    " ends before the last impact at " + FormatGeneral(last_onset, 10) + " s");
   }
   return options.duration_s > 0 ? options.duration_s : last_onset + options.tail_s;
 }

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/bundled_scenes.hpp"
 #include "bouncecal/physics/flight.hpp"
@@ -36,7 +37,8 @@ bool SynthSpec::IsValid(std::string* error) const {
   for (const SynthDrop& d : drops) {
     if (!(d.first_impact_s >= 0.0 && Finite(d.first_impact_s)) ||
         (d.height_m && !(*d.height_m > 0.0 && Finite(*d.height_m)))) {
-      if (error) *error = "drop at " + Num(d.first_impact_s) + " s: invalid time or height";
+      if (error)
+        *error = "drop at " + FormatGeneral(d.first_impact_s, 10) + " s: invalid time or height";
       return false;
     }
   }

@@ -1,16 +1,7 @@
 // What the synth wing's files share. See synth_internal.hpp.
 #include "synth/synth_internal.hpp"
 
-#include <sstream>
-
 namespace bouncecal::synth {
-
-std::string Num(double v) {
-  std::ostringstream o;
-  o.precision(10);
-  o << v;
-  return o.str();
-}
 
 nlohmann::json ModesJson(const std::vector<Mode>& modes) {
   nlohmann::json a = nlohmann::json::array();

@@ -1,5 +1,5 @@
-// What the synth wing's files share (internal to the library, src/): the random streams, the
-// number text of its messages and the modes' JSON.
+// What the synth wing's files share (internal to the library, src/): the random streams and
+// the modes' JSON.
 #pragma once
 
 #include <cmath>
@@ -12,8 +12,6 @@
 #include "bouncecal/synth/synth.hpp"
 
 namespace bouncecal::synth {
-
-std::string Num(double v);
 
 // SplitMix64 (Steele, Lea & Flood 2014): tiny, fast, identical on every platform.
 class Rng {

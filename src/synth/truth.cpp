@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/bundled_scenes.hpp"
 #include "bouncecal/physics/flight.hpp"
@@ -70,12 +71,14 @@ bool RestitutionModel::IsValid(std::string* error) const {
   };
   switch (kind) {
     case Kind::kConstant:
-      if (!(e0 >= 0.0 && e0 <= 1.0)) return fail("e = " + Num(e0) + " (expected 0 <= e <= 1)");
+      if (!(e0 >= 0.0 && e0 <= 1.0))
+        return fail("e = " + FormatGeneral(e0, 10) + " (expected 0 <= e <= 1)");
       break;
     case Kind::kPowerLaw:
-      if (!(e0 >= 0.0 && e0 <= 1.0)) return fail("e0 = " + Num(e0) + " (expected 0..1)");
-      if (!(c >= 0.0 && Finite(c))) return fail("c = " + Num(c) + " (expected >= 0)");
-      if (!(p > 0.0 && Finite(p))) return fail("p = " + Num(p) + " (expected > 0)");
+      if (!(e0 >= 0.0 && e0 <= 1.0))
+        return fail("e0 = " + FormatGeneral(e0, 10) + " (expected 0..1)");
+      if (!(c >= 0.0 && Finite(c))) return fail("c = " + FormatGeneral(c, 10) + " (expected >= 0)");
+      if (!(p > 0.0 && Finite(p))) return fail("p = " + FormatGeneral(p, 10) + " (expected > 0)");
       break;
     case Kind::kFunction:
       if (!function) return fail("no function given");
@@ -103,14 +106,15 @@ bool TruthOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(min_interval_s > 0.0 && Finite(min_interval_s))) {
-    return fail("min_interval_s = " + Num(min_interval_s) + " (expected > 0)");
+    return fail("min_interval_s = " + FormatGeneral(min_interval_s, 10) + " (expected > 0)");
   }
   if (!Finite(rest_speed_m_s)) return fail("rest_speed_m_s is not finite");
   if (contact_s && !(*contact_s >= 0.0 && *contact_s < 0.1)) {
-    return fail("contact_s = " + Num(*contact_s) + " (expected 0 <= contact_s < 0.1 s)");
+    return fail("contact_s = " + FormatGeneral(*contact_s, 10) +
+                " (expected 0 <= contact_s < 0.1 s)");
   }
   if (!(scatter_e >= 0.0 && scatter_e < 0.5)) {
-    return fail("scatter_e = " + Num(scatter_e) + " (expected 0 <= scatter_e < 0.5)");
+    return fail("scatter_e = " + FormatGeneral(scatter_e, 10) + " (expected 0 <= scatter_e < 0.5)");
   }
   return true;
 }
@@ -135,7 +139,8 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
     v_in = flight.FallArrivalSpeed(scene.drop.height_m.value_or(0.0));
   }
   if (!(v_in > 0.0)) {
-    throw Error(ErrorCode::kBadScene, "drop: first impact speed " + Num(v_in) + " m/s is not > 0");
+    throw Error(ErrorCode::kBadScene,
+                "drop: first impact speed " + FormatGeneral(v_in, 10) + " m/s is not > 0");
   }
   const double rest =
       options.rest_speed_m_s > 0 ? options.rest_speed_m_s : scene.limits.rest_speed_m_s;
@@ -156,8 +161,9 @@ std::vector<TruthImpact> ImpactsFromRestitution(const Scene& scene, const Restit
   for (int k = 0; k < scene.limits.max_impacts; ++k) {
     const double e_model = model(v_in);
     if (!(e_model >= 0.0 && e_model <= 1.0)) {
-      throw Error(ErrorCode::kBadParameter, "restitution model gives e = " + Num(e_model) +
-                                                " at v = " + Num(v_in) + " m/s (expected 0..1)");
+      throw Error(ErrorCode::kBadParameter,
+                  "restitution model gives e = " + FormatGeneral(e_model, 10) +
+                      " at v = " + FormatGeneral(v_in, 10) + " m/s (expected 0..1)");
     }
     const double e = options.scatter_e > 0.0
                          ? std::clamp(e_model + options.scatter_e * scatter.Normal(), 0.0, 1.0)
@@ -231,7 +237,7 @@ std::vector<TruthImpact> ImpactsFromLaw(const Scene& scene, const TruthOptions& 
   if (!options.IsValid(&err)) throw Error(ErrorCode::kBadParameter, "truth options: " + err);
   if (options.contact_s) {
     throw Error(ErrorCode::kBadParameter,
-                "truth options: contact_s = " + Num(*options.contact_s) +
+                "truth options: contact_s = " + FormatGeneral(*options.contact_s, 10) +
                     " cannot be used with truth from the contact law (the law '" + scene.law.name +
                     "' gives each impact's contact duration)");
   }

@@ -194,6 +194,12 @@ CliRun Cli(const std::string& args) {
   return r;
 }
 
+// The impacts of the first chosen sequence of a `detect --json` object (bouncecal.detect/2 lists
+// each impact once, in its sequence).
+const nlohmann::json& ChosenImpacts(const nlohmann::json& d) {
+  return d.at("sequences").at(d.at("chosen_sequences").at(0).get<std::size_t>()).at("impacts");
+}
+
 class DetectCli : public ::testing::Test {
  protected:
   testing_util::ScratchDir scratch_{"bc_detect_cli"};
@@ -209,14 +215,17 @@ TEST_F(DetectCli, JsonCsvAndTable) {
   const nlohmann::json doc = nlohmann::json::parse(j.out);
   EXPECT_EQ(doc["sample_rate_hz"].get<double>(), 44100.0);
   EXPECT_EQ(doc["channels"].get<int>(), 1);
-  ASSERT_TRUE(doc["impacts"].is_array());
-  ASSERT_GE(doc["impacts"].size(), 10u);
+  // Each impact once, in its sequence (bouncecal.detect/2): no top-level copy.
+  EXPECT_FALSE(doc.contains("impacts"));
+  const nlohmann::json& main = doc["sequences"][doc["chosen_sequences"][0].get<int>()]["impacts"];
+  ASSERT_TRUE(main.is_array());
+  ASSERT_GE(main.size(), 10u);
   for (const char* key : {"time_s", "time_sigma_s", "amplitude", "snr_db", "score"})
-    EXPECT_TRUE(doc["impacts"][0].contains(key)) << key;
+    EXPECT_TRUE(main[0].contains(key)) << key;
   ASSERT_GE(doc["sequences"].size(), 1u);
   EXPECT_TRUE(doc["sequences"][0].contains("end_reason"));
   EXPECT_TRUE(doc["sequences"][0].contains("missed_after"));
-  EXPECT_NEAR(doc["impacts"][0]["time_s"].get<double>(), s.recording.drops[0][0].onset_s, 1e-4);
+  EXPECT_NEAR(main[0]["time_s"].get<double>(), s.recording.drops[0][0].onset_s, 1e-4);
 
   const CliRun c = Cli("detect " + wav + " --csv");
   ASSERT_EQ(c.code, 0);
@@ -294,7 +303,7 @@ TEST_F(DetectCliMore, WindowAndSequenceChoice) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["sequences"].size(), 1u);
-  EXPECT_NEAR(j["impacts"][0]["time_s"].get<double>(), second_drop_s_, 1e-3);
+  EXPECT_NEAR(ChosenImpacts(j)[0]["time_s"].get<double>(), second_drop_s_, 1e-3);
   EXPECT_NEAR(j["window"]["start_s"].get<double>(), second_drop_s_ - 0.2, 1e-4);
   // A window with no impact: exit 7, the window in the message.
   r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --start 0.1 --end 0.5");
@@ -306,7 +315,7 @@ TEST_F(DetectCliMore, WindowAndSequenceChoice) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["chosen_sequences"], nlohmann::json::array({1}));
-  EXPECT_NEAR(j["impacts"][0]["time_s"].get<double>(), second_drop_s_, 1e-3);
+  EXPECT_NEAR(ChosenImpacts(j)[0]["time_s"].get<double>(), second_drop_s_, 1e-3);
   r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " --sequence 7");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("sequence 7 requested"), std::string::npos) << r.err;
@@ -332,7 +341,7 @@ TEST_F(DetectCliMore, SeveralRecordingsPerCall) {
   auto j = nlohmann::json::parse(r.out);
   ASSERT_TRUE(j.is_array());
   ASSERT_EQ(j.size(), 2u);
-  EXPECT_EQ(j[0]["impacts"], j[1]["impacts"]);
+  EXPECT_EQ(j[0]["sequences"], j[1]["sequences"]);
   // One bad file among them: the others are printed, exit 12, its error in the array.
   r = RunCommand(BOUNCECAL_BINARY, "detect " + two_ + " " + bad + " --json");
   EXPECT_EQ(r.exit_code, 12);
@@ -369,7 +378,7 @@ TEST_F(DetectCliMore, ClickTrack) {
   // At every impact the click track departs from the (half-gain) recording by the click; 50 ms
   // before the first impact it is the half-gain recording.
   const double rate = in.info.sample_rate_hz;
-  for (const auto& imp : j["impacts"]) {
+  for (const auto& imp : ChosenImpacts(j)) {
     const std::size_t k = static_cast<std::size_t>(imp["time_s"].get<double>() * rate);
     double dev = 0.0;
     for (std::size_t i = k; i < k + 40; ++i)

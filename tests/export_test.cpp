@@ -21,6 +21,7 @@
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "export/deck.hpp"
+#include "fit_file.hpp"
 #include "law_oracle.hpp"
 #include "test_util.hpp"
 
@@ -32,36 +33,13 @@ using testing_util::CommandResult;
 using testing_util::RunCommand;
 using testing_util::ScratchDir;
 using testing_util::Slurp;
+using testing_util::WriteFit;
 
 const std::string kBin = BOUNCECAL_BINARY;
 const ContactBody kSteel = ContactBody::BallOnRigidWall(0.004084070449666731, 0.005);
 
 double OracleE(const NativeModel& m, const ContactBody& body, double v) {
   return oracle::Integrate(m, m.ParameterValues(), body, v).restitution;
-}
-
-// A real fit of `law` (trajectory strategy) from 12 impacts simulated with `truth`, written as
-// a parameter file.
-std::string WriteFit(const ScratchDir& dir, const std::string& law,
-                     const std::map<std::string, double>& truth, const std::string& name) {
-  Scene s;
-  s.law = {law, truth, ""};
-  s.limits.max_impacts = 12;
-  auto l = CreateLaw(s.law, s);
-  const Simulation sim = Simulate(s, *l, l->ParameterValues());
-  Sequence seq;
-  for (const auto& i : sim.impacts) seq.impacts.push_back({1.0 + i.time_s, 5e-6});
-  Scene start;
-  start.law.name = law;
-  CalibrationOptions o;
-  o.strategy = FitStrategy::kTrajectory;  // simulated times: the contacts are in the intervals
-  const Calibration c = Calibrate({{"drop.wav", seq}}, start, o);
-  Provenance prov;
-  prov.bouncecal_version = "test";
-  prov.date_utc = "2026-01-01T00:00:00Z";
-  const std::string path = dir / name;
-  WriteParamFile(path, CalibrationJson(c, prov, OptionsJson(CalibrationOptions{})), {});
-  return path;
 }
 
 json Load(const std::string& path) { return json::parse(Slurp(path)); }

@@ -164,6 +164,66 @@ TEST_F(ImpactsCli, RoundTripFromDetectJsonWithOneImpactRemoved) {
   EXPECT_TRUE(warned) << a2.out;
   // The bounces after the gap keep their e.
   EXPECT_NEAR(j2["bounces"][8]["e"].get<double>(), j0["bounces"][9]["e"].get<double>(), 1e-12);
+  // An impact added by hand half-way between impacts 3 and 4: one bounce more, and the e of the
+  // bounces around it is what the added time makes it.
+  nlohmann::json added = nlohmann::json::parse(det.out);
+  auto& imps = added["sequences"][0]["impacts"];
+  nlohmann::json extra = imps[3];
+  const double t3 = imps[3]["time_s"].get<double>(), t4 = imps[4]["time_s"].get<double>();
+  extra["time_s"] = 0.5 * (t3 + t4);
+  imps.insert(imps.begin() + 4, extra);
+  const std::string more = dir_ / "more.json";
+  std::ofstream(more) << added.dump();
+  const auto a3 = RunCommand(BOUNCECAL_BINARY,
+                             "analyze " + wav_ + " --impacts " + more + " --height 0.3 --json");
+  ASSERT_EQ(a3.exit_code, 0) << a3.err;
+  const auto j3 = nlohmann::json::parse(a3.out);
+  ASSERT_EQ(j3["bounces"].size(), j0["bounces"].size() + 1);
+  EXPECT_DOUBLE_EQ(j3["bounces"][4]["time_s"].get<double>(), 0.5 * (t3 + t4));
+  const double t2 = imps[2]["time_s"].get<double>();
+  EXPECT_NEAR(j3["bounces"][3]["e"].get<double>(), (0.5 * (t4 - t3)) / (t3 - t2), 0.05);
+}
+
+// The JSON of `detect --json` lists each impact once (bouncecal.detect/2); a bouncecal.detect/1
+// file carries a second copy at the top level, which must agree with the sequence it copies.
+TEST_F(ImpactsCli, OldDetectJsonWithTwoDisagreeingCopiesIsRefused) {
+  const auto det = RunCommand(BOUNCECAL_BINARY, "detect " + wav_ + " --json");
+  ASSERT_EQ(det.exit_code, 0) << det.err;
+  nlohmann::json v1 = nlohmann::json::parse(det.out);
+  ASSERT_EQ(v1["schema"], "bouncecal.detect/2");
+  ASSERT_FALSE(v1.contains("impacts"));
+  v1["schema"] = "bouncecal.detect/1";
+  v1["impacts"] = v1["sequences"][0]["impacts"];
+  const std::string agree = dir_ / "v1.json";
+  std::ofstream(agree) << v1.dump();
+  auto r = RunCommand(BOUNCECAL_BINARY, "analyze " + wav_ + " --impacts " + agree + " --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  // Impact 5 deleted from the top-level copy only: the edit would do nothing; refused.
+  nlohmann::json edited = v1;
+  edited["impacts"].erase(5);
+  const std::string bad = dir_ / "v1_edited.json";
+  std::ofstream(bad) << edited.dump();
+  r = RunCommand(BOUNCECAL_BINARY, "analyze " + wav_ + " --impacts " + bad + " --json");
+  EXPECT_EQ(r.exit_code, 8) << r.err;
+  EXPECT_TRUE(r.out.empty());
+  EXPECT_NE(r.err.find(bad + ":impacts[5]"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sequences[0].impacts"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("bouncecal.detect/2"), std::string::npos) << r.err;
+  // Deleted from both copies: read (one bounce fewer than the whole file).
+  edited["sequences"][0]["impacts"].erase(5);
+  std::ofstream(bad) << edited.dump();
+  r = RunCommand(BOUNCECAL_BINARY, "detect " + wav_ + " --impacts " + bad + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["sequences"][0]["impacts"].size(), v1["sequences"][0]["impacts"].size() - 1);
+  // A version this bouncecal does not know.
+  nlohmann::json v9 = nlohmann::json::parse(det.out);
+  v9["schema"] = "bouncecal.detect/9";
+  const std::string future = dir_ / "v9.json";
+  std::ofstream(future) << v9.dump();
+  r = RunCommand(BOUNCECAL_BINARY, "analyze " + wav_ + " --impacts " + future + " --json");
+  EXPECT_EQ(r.exit_code, 8) << r.err;
+  EXPECT_NE(r.err.find("bouncecal.detect/9"), std::string::npos) << r.err;
 }
 
 TEST_F(ImpactsCli, BadImpactsFileExitCodes) {

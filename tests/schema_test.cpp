@@ -37,7 +37,7 @@ const SchemaSet& Schemas() {
   return set;
 }
 
-// "bouncecal.detect/1" -> "detect.schema.json" (the file whose $id it is).
+// "bouncecal.detect/2" -> "detect.schema.json" (the file whose $id it is).
 std::string SchemaFile(const json& j) {
   if (!j.is_object() || !j.contains("schema") || !j["schema"].is_string()) return "";
   const std::string id = j["schema"].get<std::string>();
@@ -158,30 +158,35 @@ json* SchemaTest::synth_json_ = nullptr;
 TEST(SchemaFiles, EverySchemaFileNamesItsVersionAndTheValidatorCatchesChanges) {
   // The validator itself: a renamed, an added and a nulled field each fail.
   const json good = RunJson("detect " + kFlac + " --json");
-  ExpectValid(good, "bouncecal.detect/1");
+  ExpectValid(good, "bouncecal.detect/2");
   json renamed = good;
-  renamed["impacts"][0]["sigma_s"] = renamed["impacts"][0]["time_sigma_s"];
-  renamed["impacts"][0].erase("time_sigma_s");
+  json& first = renamed["sequences"][0]["impacts"][0];
+  first["sigma_s"] = first["time_sigma_s"];
+  first.erase("time_sigma_s");
   EXPECT_GE(Schemas().Validate(renamed, "detect.schema.json").size(), 2u);
   json added = good;
   added["channel_used"] = 0;
   EXPECT_EQ(Schemas().Validate(added, "detect.schema.json").size(), 1u);
   json nulled = good;
-  nulled["impacts"][0]["time_s"] = nullptr;
+  nulled["sequences"][0]["impacts"][0]["time_s"] = nullptr;
   EXPECT_EQ(Schemas().Validate(nulled, "detect.schema.json").size(), 1u);
+  // bouncecal.detect/1's second copy of the impacts is gone (each impact once, in its sequence).
+  json second_copy = good;
+  second_copy["impacts"] = good["sequences"][0]["impacts"];
+  EXPECT_EQ(Schemas().Validate(second_copy, "detect.schema.json").size(), 1u);
   json wrong_version = good;
-  wrong_version["schema"] = "bouncecal.detect/2";
+  wrong_version["schema"] = "bouncecal.detect/1";
   EXPECT_EQ(Schemas().Validate(wrong_version, "detect.schema.json").size(), 1u);
 }
 
 TEST_F(SchemaTest, Detect) {
-  ExpectValid(RunJson("detect " + kFlac + " --json"), "bouncecal.detect/1");
+  ExpectValid(RunJson("detect " + kFlac + " --json"), "bouncecal.detect/2");
   // Several recordings: an array; a failed one is a bouncecal.error/1 object.
   const json all =
       RunJson("detect " + kFlac + " " + P("synth.wav") + " " + P("absent.wav") + " --json", 12);
   ASSERT_EQ(all.size(), 3u);
-  ExpectValid(all[0], "bouncecal.detect/1");
-  ExpectValid(all[1], "bouncecal.detect/1");
+  ExpectValid(all[0], "bouncecal.detect/2");
+  ExpectValid(all[1], "bouncecal.detect/2");
   ExpectValid(all[2], "bouncecal.error/1");
   EXPECT_EQ(all[2]["error"]["exit_code"], 3);
   // CSV: the same numbers to the last bit; a file column for several files.

@@ -926,6 +926,90 @@ TEST_F(SynthCli, TruthFromTheSceneLawWhenOneIsNamed) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// --drops with random gaps (an automated dropper) and varied drops: the drop plan (PlanDrops).
+TEST_F(SynthCli, RandomGapsAndVariedDrops) {
+  const std::string out = (dir_ / "rig.flac").string();
+  ASSERT_EQ(Run("--preset steel-copper --height 0.03 --drops 6 --drop-gap 0.1 --drop-gap-max 1.3 "
+                "--no-noise --tail 0.2 -o " +
+                out),
+            0)
+      << Slurp(dir_ / "stderr");
+  const auto rig = nlohmann::json::parse(Slurp(dir_ / "rig.truth.json"));
+  ASSERT_EQ(rig["drops"].size(), 6u);
+  std::set<double> gaps;
+  for (std::size_t d = 1; d < 6; ++d) {
+    const auto& prev = rig["drops"][d - 1]["impacts"];
+    const auto& next = rig["drops"][d]["impacts"];
+    const double gap =
+        next[0]["time_s"].get<double>() - prev[prev.size() - 1]["time_s"].get<double>();
+    EXPECT_GE(gap, 0.1 - 1e-12);
+    EXPECT_LE(gap, 1.3 + 1e-12);
+    gaps.insert(gap);
+    // Identical drops: the same impacts, shifted.
+    ASSERT_EQ(next.size(), prev.size());
+    EXPECT_EQ(next[3]["v_in_m_s"], prev[3]["v_in_m_s"]);
+    EXPECT_FALSE(rig["drops"][d].contains("e_shift"));  // an identical drop: the two-key form
+  }
+  EXPECT_EQ(gaps.size(), 5u);  // drawn, not fixed
+
+  ASSERT_EQ(Run("--preset steel-copper --height 0.03 --drops 4 --vary-height 0.5 --vary-e 0.02 "
+                "--scatter-e 0.004 --no-noise --tail 0.2 -o " +
+                (dir_ / "varied.wav").string()),
+            0)
+      << Slurp(dir_ / "stderr");
+  const auto varied = nlohmann::json::parse(Slurp(dir_ / "varied.truth.json"));
+  std::set<double> heights, shifts, first_e;
+  for (const auto& d : varied["drops"]) {
+    const double h = d["height_m"].get<double>();
+    EXPECT_GE(h, 0.015);
+    EXPECT_LE(h, 0.045);
+    EXPECT_LE(std::fabs(d["e_shift"].get<double>()), 0.02);
+    heights.insert(h);
+    shifts.insert(d["e_shift"].get<double>());
+    first_e.insert(d["impacts"][0]["e"].get<double>());
+    EXPECT_NEAR(d["impacts"][0]["v_in_m_s"].get<double>(), std::sqrt(2 * kG * h), 1e-9);
+  }
+  EXPECT_EQ(heights.size(), 4u);
+  EXPECT_EQ(shifts.size(), 4u);
+  EXPECT_EQ(first_e.size(), 4u);
+
+  const std::string bad = (dir_ / "bad.wav").string();
+  EXPECT_EQ(Run("--drops 3 --drop-gap 0.5 --drop-gap-max 0.2 -o " + bad), 9);
+  EXPECT_NE(Slurp(dir_ / "stderr").find("--drop-gap-max"), std::string::npos)
+      << Slurp(dir_ / "stderr");
+  EXPECT_EQ(Run("--drops 3 --vary-height 1.5 -o " + bad), 9);
+  EXPECT_NE(Slurp(dir_ / "stderr").find("--vary-height"), std::string::npos);
+  EXPECT_EQ(Run("--drops 1001 -o " + bad), 9);
+  EXPECT_FALSE(fs::exists(bad));
+}
+
+TEST(DropPlanTest, SameSeedSamePlanOtherSeedOtherGaps) {
+  SynthSpec spec = SynthPreset("steel-copper");
+  spec.scene.drop.height_m = 0.03;
+  DropPlan plan;
+  plan.drops = 5;
+  plan.gap_min_s = 0.1;
+  plan.gap_max_s = 1.3;
+  plan.seed = 4;
+  const auto a = PlanDrops(spec, plan), b = PlanDrops(spec, plan);
+  plan.seed = 5;
+  const auto c = PlanDrops(spec, plan);
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(a[i].first_impact_s, b[i].first_impact_s);
+  EXPECT_NE(a[2].first_impact_s, c[2].first_impact_s);
+  EXPECT_EQ(a[0].first_impact_s, plan.first_impact_s);
+  // A fixed gap: the next drop starts exactly the gap after the last impact.
+  plan.gap_max_s = plan.gap_min_s;
+  const auto f = PlanDrops(spec, plan);
+  EXPECT_EQ(f[1].first_impact_s, DropTruth(spec, f[0]).back().time_s + 0.1);
+  plan.e_spread = 0.01;
+  spec.truth_source = TruthSource::kLaw;
+  EXPECT_THROW(PlanDrops(spec, plan), Error);
+  plan.drops = 0;
+  std::string why;
+  EXPECT_FALSE(plan.IsValid(&why));
+  EXPECT_NE(why.find("drops = 0"), std::string::npos) << why;
+}
+
 TEST_F(SynthCli, BadArgumentsFailCleanly) {
   const std::string out = (dir_ / "x.wav").string();
   EXPECT_EQ(Run("--preset tuba -o " + out), 9);

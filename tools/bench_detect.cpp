@@ -7,20 +7,20 @@
 // "rubber-wood", "phone-16k", "two-drops", each rendered with several seeds, written as 24-bit
 // WAV to a temporary folder and read back with ReadAudio (the path a user's file takes).
 //
-// Matching rule (the same for bouncecal and aubio): one constant offset per file is allowed (no
-// detector knows the microphone distance; aubio also reports onsets shifted by its latency):
-// the offset is the median of (nearest detection - truth onset) over eligible impacts, within
-// +-20 ms. After removing it, truth and detections are matched one-to-one, nearest first, within
-// +-1 ms. Eligible impacts: >= 3 ms from both neighbours of their drop and SNR >= 20 dB (the
-// renderer's per-impact SNR). Recall = matched eligible / eligible. Precision = detections
-// matched to any true impact / detections (distractor clicks and echoes count as false).
-// Interval error: (t_det[k+1] - t_det[k]) - (t_true[k+1] - t_true[k]) over consecutive
-// impacts of one drop, both eligible and matched. Restitution error: e_k = dt_k / dt_{k-1} from
-// detected minus from true onsets (the part of the restitution error that detection causes).
-// Calibration: z = (t_det - offset - t_true) / sigma_s; RMS(z) should be ~1.
-// Speed: CPU time of DetectImpacts only (file already in memory), best of 3 runs, one thread;
-// aubioonset's time is the CPU time of its process on the same file (decode and process start
-// included). CPU time, not wall time: the benchmark machine may be shared.
+// Matching rule (the same for bouncecal and aubio; tools/detect_matching.hpp, shared with the
+// scoreboard): one constant offset per file is allowed (no detector knows the microphone
+// distance; aubio also reports onsets shifted by its latency): the offset is the median of
+// (nearest detection - truth onset) over eligible impacts, within +-20 ms. After removing it,
+// truth and detections are matched one-to-one, nearest first, within +-1 ms. Eligible impacts: >= 3
+// ms from both neighbours of their drop and SNR >= 20 dB (the renderer's per-impact SNR). Recall =
+// matched eligible / eligible. Precision = detections matched to any true impact / detections
+// (distractor clicks and echoes count as false). Interval error: (t_det[k+1] - t_det[k]) -
+// (t_true[k+1] - t_true[k]) over consecutive impacts of one drop, both eligible and matched.
+// Restitution error: e_k = dt_k / dt_{k-1} from detected minus from true onsets (the part of the
+// restitution error that detection causes). Calibration: z = (t_det - offset - t_true) / sigma_s;
+// RMS(z) should be ~1. Speed: CPU time of DetectImpacts only (file already in memory), best of 3
+// runs, one thread; aubioonset's time is the CPU time of its process on the same file (decode and
+// process start included). CPU time, not wall time: the benchmark machine may be shared.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -47,9 +47,14 @@
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/synth/synth.hpp"
+#include "detect_matching.hpp"
 
 namespace fs = std::filesystem;
 using namespace bouncecal;
+using bench::MatchOnsets;
+using bench::OnsetMatch;
+using bench::Quantile;
+using bench::TruthOnset;
 
 namespace {
 
@@ -66,14 +71,6 @@ double ChildrenCpuS() {
   return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
          1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
-
-struct TruthOnset {
-  double t = 0.0;
-  int drop = 0;
-  int index = 0;
-  bool eligible = false;
-  double amplitude = 0.0;
-};
 
 struct Metrics {
   int eligible = 0, matched_eligible = 0, detections = 0, matched_detections = 0;
@@ -100,15 +97,6 @@ struct Metrics {
   }
 };
 
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const std::size_t i = static_cast<std::size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
-
 double Rms(const std::vector<double>& v) {
   if (v.empty()) return NAN;
   double s = 0;
@@ -121,43 +109,10 @@ Metrics Score(const std::vector<TruthOnset>& truth, const std::vector<double>& d
               const std::vector<double>& sigma) {
   Metrics m;
   m.detections = static_cast<int>(det.size());
-  std::vector<double> sorted = det;
-  std::sort(sorted.begin(), sorted.end());
-  auto nearest = [&](double t) {
-    auto it = std::lower_bound(sorted.begin(), sorted.end(), t);
-    double best = 1e9;
-    if (it != sorted.end()) best = *it - t;
-    if (it != sorted.begin() && std::fabs(*(it - 1) - t) < std::fabs(best)) best = *(it - 1) - t;
-    return best;
-  };
-  std::vector<double> offs;
-  for (const TruthOnset& tr : truth)
-    if (tr.eligible) {
-      const double d = nearest(tr.t);
-      if (std::fabs(d) < 0.02) offs.push_back(d);
-    }
-  const double offset = offs.empty() ? 0.0 : Quantile(offs, 0.5);
-  // One-to-one matching, nearest pairs first.
-  struct Pair {
-    double dist;
-    int ti, di;
-  };
-  std::vector<Pair> pairs;
-  for (int ti = 0; ti < static_cast<int>(truth.size()); ++ti)
-    for (int di = 0; di < static_cast<int>(det.size()); ++di) {
-      const double d = std::fabs(det[static_cast<std::size_t>(di)] - offset -
-                                 truth[static_cast<std::size_t>(ti)].t);
-      if (d <= 1e-3) pairs.push_back({d, ti, di});
-    }
-  std::sort(pairs.begin(), pairs.end(),
-            [](const Pair& a, const Pair& b) { return a.dist < b.dist; });
-  std::vector<int> t2d(truth.size(), -1), d2t(det.size(), -1);
-  for (const Pair& p : pairs) {
-    if (t2d[static_cast<std::size_t>(p.ti)] >= 0 || d2t[static_cast<std::size_t>(p.di)] >= 0)
-      continue;
-    t2d[static_cast<std::size_t>(p.ti)] = p.di;
-    d2t[static_cast<std::size_t>(p.di)] = p.ti;
-  }
+  const OnsetMatch match = MatchOnsets(truth, det);
+  const double offset = match.offset_s;
+  const std::vector<int>& t2d = match.truth_to_det;
+  const std::vector<int>& d2t = match.det_to_truth;
   for (std::size_t i = 0; i < truth.size(); ++i) {
     if (truth[i].eligible) {
       ++m.eligible;

@@ -202,8 +202,9 @@ def _listed(result, single):
 
 def detect(files=None, *, channel=None, start=None, end=None, sequence=None, min_snr_db=None,
            impacts=None, hop_ms=None, no_refine=False):
-    """`bouncecal detect FILE... --json` (schema bouncecal.detect/1): impacts with their
-    time_sigma_s, sequences, removed candidates, channel scores, warnings.
+    """`bouncecal detect FILE... --json` (schema bouncecal.detect/2): the sequences, each with its
+    impacts (time_sigma_s ...; listed once: d["sequences"][d["chosen_sequences"][0]]["impacts"]
+    are the chosen sequence's), removed candidates, channel scores, warnings.
     files: one path (-> one dict) or a list (-> a list; a failed recording is an entry
     {"file", "error"} and SomeFailedError is raised with .result = the list).
     channel: "auto" (default), "mix" or an index; sequence: "main" (default), "all" or an index;

@@ -26,8 +26,9 @@ def without_provenance(doc):
 def test_detect_equals_cli_json():
     got = bouncecal.detect(RECORDING)
     assert got == run_cli("detect", RECORDING, "--json")
-    assert got["schema"] == "bouncecal.detect/1"
-    times = bouncecal.columns(got["impacts"])["time_s"]
+    assert got["schema"] == "bouncecal.detect/2"
+    assert "impacts" not in got  # each impact once, in its sequence
+    times = bouncecal.columns(got["sequences"][got["chosen_sequences"][0]]["impacts"])["time_s"]
     assert times.dtype == float and np.all(np.diff(times) > 0)
 
 
@@ -36,7 +37,7 @@ def test_detect_options_are_the_flags():
     assert got == run_cli("detect", RECORDING, "--channel", "0", "--start", "0.1",
                           "--min-snr-db", "12", "--sequence", "all", "--json")
     assert got["channel"] == 0
-    assert all(i["time_s"] >= 0.1 for i in got["impacts"])
+    assert all(i["time_s"] >= 0.1 for q in got["sequences"] for i in q["impacts"])
 
 
 def test_detect_missing_file_raises_input_missing():

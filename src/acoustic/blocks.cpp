@@ -91,7 +91,7 @@ void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, bool last_b
                     "into analysis blocks (DetectOptions::max_block_s): its impacts after the "
                     "cut may be missing or reported as a separate sequence",
                     t0, own_hi_s);
-      d.warnings.push_back({"block_split", msg, -1});
+      d.warnings.push_back({"block_split", msg, -1, "--start/--end around this drop"});
     }
     m.sequences.push_back(std::move(q));
   }

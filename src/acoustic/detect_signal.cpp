@@ -126,14 +126,16 @@ void CapWarnings(std::size_t candidates, std::size_t sequences, double from_s, d
                   "sequence tracking (TrackOptions::max_candidates), so weaker drops or bounces "
                   "may be missing",
                   candidates, from_s, to_s, to.max_candidates);
-    warnings->push_back({"detection_capped", msg, -1});
+    warnings->push_back({"detection_capped", msg, -1,
+                         "--start/--end around the drop (fewer onsets compete there)"});
   }
   if (sequences >= static_cast<std::size_t>(to.max_sequences)) {
     std::snprintf(msg, sizeof msg,
                   "%zu bounce sequences found in [%.1f, %.1f) s, the most tracked there "
                   "(TrackOptions::max_sequences): further drops in it are not reported",
                   sequences, from_s, to_s);
-    warnings->push_back({"detection_capped", msg, -1});
+    warnings->push_back(
+        {"detection_capped", msg, -1, "analyse the drops in parts with --start/--end"});
   }
 }
 

@@ -72,6 +72,57 @@ std::vector<std::string> Split(const std::string& line, char sep) {
   return out;
 }
 
+// The versions of `detect --json` read here: bouncecal.detect/2 lists each impact once, in its
+// sequence; bouncecal.detect/1 also listed the first chosen sequence's impacts at the top level.
+// A file without "schema" (written before it existed) is read as its sequences say.
+void CheckDetectVersion(const std::string& path, const nlohmann::json& d) {
+  if (!d.contains("schema")) return;
+  if (!d["schema"].is_string()) Bad(path, "schema", "not a string");
+  const std::string v = d["schema"].get<std::string>();
+  if (v != "bouncecal.detect/1" && v != "bouncecal.detect/2")
+    Bad(path, "schema",
+        "'" + v + "' is not a detection this bouncecal reads (bouncecal.detect/2, or /1)");
+}
+
+// A top-level "impacts" list (bouncecal.detect/1, or one added by hand) is a second copy of the
+// first chosen sequence's impacts. The times come from "sequences"; a copy that disagrees with
+// them means the file was edited in the place that is not read: refused, naming both.
+void CheckSecondCopy(const std::string& path, const nlohmann::json& d) {
+  if (!d.contains("impacts")) return;
+  const nlohmann::json& top = d["impacts"];
+  if (!top.is_array()) Bad(path, "impacts", "not an array");
+  const nlohmann::json& seqs = d["sequences"];
+  std::size_t chosen = 0;
+  for (const char* key : {"main_sequence", "chosen_sequences"}) {
+    const nlohmann::json* c = d.contains(key) ? &d[key] : nullptr;
+    if (c && c->is_array()) c = c->empty() ? nullptr : &(*c)[0];
+    if (c && c->is_number_unsigned() && c->get<std::size_t>() < seqs.size())
+      chosen = c->get<std::size_t>();
+  }
+  const std::string where = "sequences[" + std::to_string(chosen) + "].impacts";
+  const nlohmann::json empty = nlohmann::json::array();
+  const nlohmann::json& read =
+      seqs.empty() || !seqs[chosen].contains("impacts") ? empty : seqs[chosen]["impacts"];
+  const std::string advice =
+      ": the two copies of bouncecal.detect/1 disagree, and --impacts reads " + where +
+      ". Make the edit there (and delete \"impacts\"), or run detect again: bouncecal.detect/2 "
+      "lists each impact once";
+  auto time = [](const nlohmann::json& i) {
+    return i.is_object() && i.contains("time_s") && i["time_s"].is_number()
+               ? FormatFixed(i["time_s"].get<double>(), 6) + " s"
+               : std::string("no time");
+  };
+  for (std::size_t k = 0; k < std::max(top.size(), read.size()); ++k) {
+    const bool same = k < top.size() && k < read.size() && top[k].contains("time_s") &&
+                      read[k].is_object() && read[k].contains("time_s") &&
+                      top[k]["time_s"] == read[k]["time_s"];
+    if (same) continue;
+    Bad(path, "impacts[" + std::to_string(k) + "]",
+        (k < top.size() ? time(top[k]) : "absent") + " where " + where + "[" + std::to_string(k) +
+            "] has " + (k < read.size() ? time(read[k]) : "none") + advice);
+  }
+}
+
 std::vector<RawTime> FromDetectJson(const std::string& path, const nlohmann::json& doc) {
   const nlohmann::json* d = &doc;
   if (doc.is_array()) {
@@ -83,7 +134,9 @@ std::vector<RawTime> FromDetectJson(const std::string& path, const nlohmann::jso
   }
   if (!d->is_object() || !d->contains("sequences") || !(*d)["sequences"].is_array())
     Bad(path, "",
-        "JSON without a \"sequences\" array: not a detection (schema bouncecal.detect/1)");
+        "JSON without a \"sequences\" array: not a detection (schema bouncecal.detect/2)");
+  CheckDetectVersion(path, *d);
+  CheckSecondCopy(path, *d);
   std::vector<RawTime> out;
   int s = 0;
   for (const auto& q : (*d)["sequences"]) {
@@ -97,7 +150,7 @@ std::vector<RawTime> FromDetectJson(const std::string& path, const nlohmann::jso
         Bad(path, where, "time_s is missing or not a number");
       RawTime r;
       r.t = i["time_s"].get<double>();
-      // time_sigma_s (bouncecal.detect/1; wins), sigma_s in files written before it.
+      // time_sigma_s (bouncecal.detect/1 and /2; wins), sigma_s in files written before it.
       for (const char* key : {"sigma_s", "time_sigma_s"})
         if (i.contains(key) && i[key].is_number()) r.sigma = i[key].get<double>();
       r.sequence = s;

@@ -128,7 +128,9 @@ std::vector<Warning> RemoveUntimedMembers(Sequence* s, const PlausibilityOptions
              " s was removed: its timing sigma (" + FormatGeneral(sig, 3) +
              " s) is not below max_sigma_fraction = " + FormatGeneral(o.max_sigma_fraction) +
              " of its shorter interval (" + FormatFixed(shorter, 4) + " s)",
-         -1});
+         -1,
+         "listen to what was kept (detect --click-track FILE.wav); if a bounce is "
+         "missing, record closer to the impact point or in a quieter room"});
   }
   if (!out.empty()) RemoveMembers(s, drop, "sigma_removed");
   return out;
@@ -146,7 +148,9 @@ std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions&
                    label + ": the impact at t = " + FormatFixed(i.time_s, 4) +
                        " s was removed: SNR " + FormatFixed(i.snr_db, 1) +
                        " dB is below min_snr_db = " + FormatGeneral(o.min_snr_db) + " dB",
-                   -1});
+                   -1,
+                   "to keep quieter impacts lower --min-snr-db (check them with detect "
+                   "--click-track FILE.wav)"});
   }
   if (!out.empty()) RemoveMembers(s, drop, "low_snr_removed");
   return out;
@@ -176,7 +180,9 @@ std::vector<Warning> RemoveQuietEarlierMembers(Sequence* s, const PlausibilityOp
                          " dB below the impacts after it, but an earlier impact is faster and "
                          "so not quieter (level_tolerance_db = " +
                          FormatGeneral(o.level_tolerance_db) + ")",
-                     -1});
+                     -1,
+                     "nothing to do if it was a tap or a handling noise; if it was a bounce, "
+                     "--start after the noise keeps it out of the search"});
     }
     if (std::find(drop.begin(), drop.end(), true) != drop.end()) {
       RemoveMembers(s, drop, "phantom_removed");
@@ -209,16 +215,16 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
         out.push_back({seqs[s].removed.back().code,
                        labels[s] + ": fewer than " + std::to_string(o.min_sequence_impacts) +
                            " impacts remain after the removals above: not a bounce sequence",
-                       -1});
+                       -1, "see the removals above; --start/--end around the drop"});
     } else if (!(ratio <= o.max_mean_ratio)) {
       keep[s] = false;
-      out.push_back({"not_shrinking",
-                     labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
-                         " impacts whose intervals do not shrink on average (mean ratio " +
-                         FormatFixed(ratio, 4) +
-                         " > max_mean_ratio = " + FormatGeneral(o.max_mean_ratio) +
-                         "): a metronome or repeated clicks, not a bouncing ball",
-                     -1});
+      out.push_back(
+          {"not_shrinking",
+           labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
+               " impacts whose intervals do not shrink on average (mean ratio " +
+               FormatFixed(ratio, 4) + " > max_mean_ratio = " + FormatGeneral(o.max_mean_ratio) +
+               "): a metronome or repeated clicks, not a bouncing ball",
+           -1, "nothing to do if these are not bounces; else --start/--end around the drop"});
     }
   }
   // Sequences far quieter than the loudest one at the same impact speed: not this ball.
@@ -237,7 +243,9 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
                        " dB quieter than the loudest sequence of this recording, so they are not "
                        "this ball (sequence_level_tolerance_db = " +
                        FormatGeneral(o.sequence_level_tolerance_db) + ")",
-                   -1});
+                   -1,
+                   "nothing to do if another ball or object made them; to analyse them, "
+                   "--start/--end around them"});
   }
   std::vector<Sequence> kept;
   for (std::size_t s = 0; s < seqs.size(); ++s)

@@ -174,7 +174,8 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   for (const Bounce& b : an.bounces) {
     char line[512];
     std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s%s\n", b.index,
-                  b.time_s, FixedOrDash(b.time_sigma_s * 1e6, 2).c_str(), FixedOrDash(b.interval_s, 6).c_str(),
+                  b.time_s, FixedOrDash(b.time_sigma_s * 1e6, 2).c_str(),
+                  FixedOrDash(b.interval_s, 6).c_str(),
                   pm(b.v_in_m_s, b.v_in_sigma_m_s, 5, 5).c_str(),
                   pm(b.v_out_m_s, b.v_out_sigma_m_s, 5, 5).c_str(),
                   pm(b.e, b.e_total_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
@@ -187,7 +188,8 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
     o << "; e from " << FixedOrDash(sum.e_min, 4) << " to " << FixedOrDash(sum.e_max, 4);
   }
   if (an.first_e) {
-    o << "; first impact e = " << FixedOrDash(*an.first_e, 5) << " +- " << FixedOrDash(*an.first_e_sigma, 5);
+    o << "; first impact e = " << FixedOrDash(*an.first_e, 5) << " +- "
+      << FixedOrDash(*an.first_e_sigma, 5);
   }
   o << "\n";
   if (an.scatter_e) {
@@ -203,7 +205,8 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   if (an.mean_eta_first3) {
     o << "mean eta of the first three (impacts";
     for (int k : an.mean_eta_indices) o << " " << k;
-    o << ") = " << FixedOrDash(*an.mean_eta_first3, 5) << " +- " << FixedOrDash(*an.mean_eta_first3_sigma, 5);
+    o << ") = " << FixedOrDash(*an.mean_eta_first3, 5) << " +- "
+      << FixedOrDash(*an.mean_eta_first3_sigma, 5);
     // The seed paper's number is for its own experiment only: a steel ball on copper that the
     // user stated (the built-in defaults are the seed's materials; they prove nothing).
     if (gs.Given("ball.material") && gs.Given("surface.material") &&
@@ -261,8 +264,10 @@ void RegisterAnalyze(CLI::App& app) {
   auto flags = std::make_shared<AnalyzeFlags>();
   CLI::App* sub = app.add_subcommand(
       "analyze", "impacts -> per-bounce speeds, restitution e and energy loss eta (with sigmas)");
-  sub->add_option("FILE", flags->files,
-                  "recordings (any format libsndfile or FFmpeg reads; or none with --impacts)");
+  sub->add_option(
+      "FILE", flags->files,
+      "recordings (any format libsndfile or FFmpeg reads; - reads standard input; or none "
+      "with --impacts)");
   AddDetectFlags(sub, &flags->detect);
   AddSceneFlags(sub, &flags->scene, /*with_law=*/false);
   sub->add_option(

@@ -6,7 +6,7 @@
 //   bouncecal detect a.wav b.m4a --json            # several recordings: a JSON array
 //   bouncecal detect drop.wav --click-track clicks.wav   # listen to what was found
 //
-// --json: schema bouncecal.detect/1 (docs/schema.md; built by DetectionJson, io/schema.hpp).
+// --json: schema bouncecal.detect/2 (docs/schema.md; built by DetectionJson, io/schema.hpp).
 //   Several recordings: an array of these objects, one per recording in order; a recording that
 //   failed is a bouncecal.error/1 object {"schema", "file", "error": {"code", "exit_code",
 //   "message"}}.
@@ -184,8 +184,10 @@ void RegisterDetect(CLI::App& app) {
   auto args = std::make_shared<DetectArgs>();
   CLI::App* sub =
       app.add_subcommand("detect", "Find the impacts and bounce sequences in recordings");
-  sub->add_option("FILE", args->files,
-                  "recordings (any format libsndfile or FFmpeg reads: WAV, FLAC, m4a/AAC, ...)");
+  sub->add_option(
+      "FILE", args->files,
+      "recordings (any format libsndfile or FFmpeg reads: WAV, FLAC, m4a/AAC, ...; - reads "
+      "standard input)");
   AddDetectFlags(sub, &args->detect);
   sub->add_option("--hop-ms", args->hop_ms, "STFT hop in ms (0 = auto, ~0.33 ms)")
       ->default_val(0.0);

@@ -13,6 +13,7 @@
 // --law/--set/--expression; otherwise the restitution model.
 #include <unistd.h>
 
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -62,6 +63,8 @@ struct SynthFlags {
   std::optional<double> first_impact_s;
   std::optional<int> drops;
   double drop_gap_s = 1.5;
+  std::optional<double> drop_gap_max_s;  // random gaps in [drop_gap_s, this]
+  std::optional<double> vary_height, vary_e;
   std::optional<double> tail_s, duration_s;
   std::string subtype;
   std::string truth_from = "auto";  // auto | restitution | law
@@ -253,13 +256,39 @@ void ApplyTruthFlags(const SynthFlags& f, SynthSpec* out) {
   }
 }
 
+// --drops N with --drop-gap-max, --vary-height or --vary-e: the drop plan (synth.hpp DropPlan:
+// random gaps, varied drops), drawn from --seed.
+void ApplyDropPlan(const SynthFlags& f, SynthSpec* out) {
+  SynthSpec& spec = *out;
+  DropPlan plan;
+  plan.drops = f.drops.value_or(1);
+  plan.first_impact_s = spec.drops.at(0).first_impact_s;
+  plan.gap_min_s = f.drop_gap_s;
+  plan.gap_max_s = f.drop_gap_max_s.value_or(f.drop_gap_s);
+  plan.height_spread = f.vary_height.value_or(0.0);
+  plan.e_spread = f.vary_e.value_or(0.0);
+  plan.seed = spec.render.seed;
+  std::string why;
+  if (!plan.IsValid(&why)) {
+    throw Error(ErrorCode::kBadParameter,
+                RenameFields(why, std::array<NameInFrontEnd, 5>{{{"drops", "--drops"},
+                                                                 {"gap_min_s", "--drop-gap"},
+                                                                 {"gap_max_s", "--drop-gap-max"},
+                                                                 {"height_spread", "--vary-height"},
+                                                                 {"e_spread", "--vary-e"}}}));
+  }
+  spec.drops = PlanDrops(spec, plan);
+}
+
 // --drops N: each drop starts drop_gap_s after the previous one's last impact.
 void ApplyDrops(const SynthFlags& f, SynthSpec* out) {
   SynthSpec& spec = *out;
+  if (f.drop_gap_max_s || f.vary_height || f.vary_e) return ApplyDropPlan(f, out);
   if (f.drops) {
-    if (*f.drops < 1 || *f.drops > 100) {
-      throw Error(ErrorCode::kBadParameter,
-                  "--drops " + std::to_string(*f.drops) + ": expected 1 to 100");
+    if (*f.drops < 1 || *f.drops > DropPlan::kMaxDrops) {
+      throw Error(ErrorCode::kBadParameter, "--drops " + std::to_string(*f.drops) +
+                                                ": expected 1 to " +
+                                                std::to_string(DropPlan::kMaxDrops));
     }
     if (!(f.drop_gap_s >= 0.0)) throw Error(ErrorCode::kBadParameter, "--drop-gap must be >= 0");
     // Each drop starts drop_gap_s after the previous one's last impact.
@@ -398,6 +427,11 @@ void RegisterSynth(CLI::App& app) {
   sub->add_option("--drops", flags->drops, "number of drops in the file");
   sub->add_option("--drop-gap", flags->drop_gap_s,
                   "silence between one drop's last impact and the next drop's first, s");
+  sub->add_option("--drop-gap-max", flags->drop_gap_max_s,
+                  "random gaps: each drawn uniformly from [--drop-gap, this], s (from --seed)");
+  sub->add_option("--vary-height", flags->vary_height,
+                  "varied drops: each drop's height times U(1-F, 1+F), its own scatter seed");
+  sub->add_option("--vary-e", flags->vary_e, "varied drops: each drop's e shifted by U(-D, D)");
   sub->add_option("--tail", flags->tail_s, "recording after the last impact, s");
   sub->add_option("--duration", flags->duration_s, "total duration, s (default: auto)");
   sub->add_option("--subtype", flags->subtype, "PCM_16 (default), PCM_24, PCM_32, FLOAT, VORBIS");

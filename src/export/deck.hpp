@@ -1,12 +1,14 @@
 // export/deck.hpp — what every deck writer needs (internal to the export wing).
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "bouncecal/core/format.hpp"
 #include "bouncecal/export/export.hpp"
 #include "bouncecal/export/mapping.hpp"
+#include "bouncecal/io/param_resolved.hpp"
 
 namespace bouncecal::exporter {
 
@@ -30,6 +32,27 @@ struct DeckInput {
   double packing_restitution = 0.0;  // pairwise e the packing uses (the fit's, see export.cpp)
 };
 
+// A parameter file read, its fit outcome checked (unless force), replayed and mapped onto a
+// target over its speeds (export.cpp's stages 1-2); e_fit: the fitted law's e at each speed.
+struct MappedFile {
+  ParamFile pf;
+  Replay replay;
+  std::unique_ptr<ContactLaw> law;
+  ContactBody body;
+  std::vector<double> speeds;
+  Mapping mapping;
+  std::vector<double> e_fit;
+};
+MappedFile MapParamFile(const std::string& path, ExportTarget target, bool force);
+nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law, const Scene& scene);
+// The output directory's checks (before any work) and its creation (after it).
+void CheckOutputDirectory(const std::string& dir, bool force);
+void PrepareOutputDirectory(const std::string& dir, bool force);
+// The simulator version the deck is written for, and notes when it is not the verified one.
+void AddVersionNotes(ExportResult* r, ExportTarget target, const std::string& requested);
+// The column scene (column_export.cpp).
+ExportResult ExportColumn(const std::string& params_path, const std::string& out_dir,
+                          const ExportOptions& options);
 // Comment lines with a prefix ("# ").
 std::string CommentBlock(const std::vector<std::string>& lines, const std::string& prefix);
 

@@ -13,9 +13,10 @@
 
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
-#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
+#include "bouncecal/io/param_file.hpp"
 #include "bouncecal/io/param_resolved.hpp"
+#include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "export/deck.hpp"
@@ -77,16 +78,18 @@ std::string Trim(std::string s) {
 
 void CheckOutcome(const ParamFile& pf, const std::string& path, bool force) {
   if (pf.outcome == "converged" || force) return;
-  std::string message;
-  if (pf.doc.contains("fit") && pf.doc["fit"].contains("message") &&
-      pf.doc["fit"]["message"].is_string()) {
-    message = pf.doc["fit"]["message"].get<std::string>();
-  }
+  auto text = [&](const char* key) {
+    return pf.doc.contains("fit") && pf.doc["fit"].contains(key) && pf.doc["fit"][key].is_string()
+               ? pf.doc["fit"][key].get<std::string>()
+               : std::string();
+  };
+  const std::string message = text("message"), hint = text("hint");
   throw Error(ErrorCode::kFitFailed,
               path + ": fit.outcome is '" + (pf.outcome.empty() ? "missing" : pf.outcome) +
                   "', not 'converged'" + (message.empty() ? "" : " (" + message + ")") +
                   ": its parameters may not describe the recording; not exported "
-                  "(ExportOptions::force overrides)");
+                  "(ExportOptions::force overrides)" +
+                  (hint.empty() ? "" : "; next, for the fit: " + hint));
 }
 
 // Checks the output directory (run it before any work); true when it already exists.
@@ -207,6 +210,37 @@ std::string LawSummary(const Scene& s) {
   return out;
 }
 
+// The fitted law's misfit to the measured bounces, beside the mapping's error in the header.
+std::string LawMisfitComment(const ExportResult& r) {
+  if (!std::isfinite(r.law_misfit_e))
+    return "fit: the law's misfit to the measured bounces was not tested (too few bounces, the "
+           "trajectory strategy, or an older parameter file)";
+  const bool small = std::any_of(r.warnings.begin(), r.warnings.end(),
+                                 [](const Warning& w) { return w.code == "law_misfit_small"; });
+  return "fit: the law's e(v) differs from a smoother e(v) through the measured bounces by " +
+         FormatShortest(r.law_misfit_e) + " rms (tolerance " +
+         FormatShortest(r.law_misfit_tolerance_e) + "; " +
+         (small ? "significant but below it: law_misfit_small" : "not significant") +
+         "): the simulator reproduces the law, to the mapping error above, not that difference";
+}
+
+// The fit's law misfit and its warning from the parameter file (absent in older files).
+void ReadLawMisfit(const ParamFile& pf, ExportResult* r) {
+  const nlohmann::json& fit = pf.doc.contains("fit") ? pf.doc["fit"] : nlohmann::json();
+  auto number = [&](const char* key) {
+    return fit.is_object() && fit.contains(key) && fit[key].is_number()
+               ? fit[key].get<double>()
+               : std::numeric_limits<double>::quiet_NaN();
+  };
+  r->law_misfit_e = number("misfit_e");
+  r->law_misfit_tolerance_e = number("misfit_tolerance_e");
+  if (!pf.doc.contains("warnings") || !pf.doc["warnings"].is_array()) return;
+  for (const auto& w : pf.doc["warnings"]) {
+    if (!w.is_object() || w.value("code", "") != "law_misfit_small") continue;
+    r->warnings.push_back({"law_misfit_small", w.value("message", ""), -1, w.value("hint", "")});
+  }
+}
+
 std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult& r,
                                         const TimeStep& ts) {
   const Mapping& m = in.mapping;
@@ -222,6 +256,7 @@ std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult&
               ", max contact-time error " + FormatShortest(m.max_contact_time_error) +
               " (relative), over " + FormatShortest(m.speeds_m_s.front()) + " .. " +
               FormatShortest(m.speeds_m_s.back()) + " m/s");
+  c.push_back(LawMisfitComment(r));
   c.push_back("ball: R = " + FormatShortest(in.radius_m) + " m, m = " + FormatShortest(in.mass_kg) +
               " kg (density " + FormatShortest(in.density_kg_m3) +
               " kg/m^3), rigid plane z = 0, g = " + FormatShortest(in.g_m_s2) + " m/s^2");
@@ -363,7 +398,15 @@ std::string RunScript(const DeckInput& in) {
 }  // namespace exporter
 
 const char* ExportSceneName(ExportScene scene) {
-  return scene == ExportScene::kBounce ? "bounce" : "packing";
+  switch (scene) {
+    case ExportScene::kBounce:
+      return "bounce";
+    case ExportScene::kPacking:
+      return "packing";
+    case ExportScene::kColumn:
+      return "column";
+  }
+  return "?";
 }
 
 bool ParseExportScene(const std::string& text, ExportScene* scene) {
@@ -371,6 +414,8 @@ bool ParseExportScene(const std::string& text, ExportScene* scene) {
     *scene = ExportScene::kBounce;
   } else if (text == "packing") {
     *scene = ExportScene::kPacking;
+  } else if (text == "column") {
+    *scene = ExportScene::kColumn;
   } else {
     return false;
   }
@@ -457,122 +502,64 @@ bool ExportOptions::IsValid(std::string* error) const {
   if (scene == ExportScene::kPacking && target == ExportTarget::kYade) {
     return fail("scene packing: written for lammps and liggghts only (target yade)");
   }
+  if (scene == ExportScene::kColumn && target == ExportTarget::kLiggghts) {
+    return fail("scene column: written for lammps and yade only (target liggghts)");
+  }
+  if (scene == ExportScene::kColumn) return column.IsValid(error);
   return true;
 }
 
-// The fit's law object (values and sigmas); a version-1 file's law rebuilt from the registry.
-static nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law,
-                                      const Scene& scene) {
+namespace exporter {
+
+nlohmann::json ExportedLawJson(const ParamFile& pf, const ContactLaw& law, const Scene& scene) {
   if (pf.schema == kParamFileSchema && pf.doc.contains("law")) return pf.doc["law"];
   return LawJson(law, law.ParameterValues(), scene.law.expression);
 }
 
-namespace {
-
-// The simulator version the deck is written for, and what of the scene it leaves out.
-void NoteSimulatorAndScene(const ExportOptions& options, const Scene& scene, double g,
-                           ExportResult* out) {
-  ExportResult& r = *out;
-  r.simulator_version = options.simulator_version;
-  if (r.simulator_version.empty()) r.simulator_version = DetectSimulatorVersion(options.target);
-  const std::string verified = VerifiedSimulatorVersion(options.target);
-  if (r.simulator_version.empty()) {
-    r.simulator_version = verified;
-    r.notes.push_back(std::string(SimulatorProgram(options.target)) +
-                      " is not on PATH: written for the verified " + verified);
-  } else if (r.simulator_version != verified) {
-    r.notes.push_back(r.simulator_version + " is not the verified " + verified +
-                      ": its mappings and slip compensations are assumed; check with the "
-                      "integration suite");
+MappedFile MapParamFile(const std::string& path, ExportTarget target, bool force) {
+  MappedFile f{ReadParamFile(path), {}, nullptr, {}, {}, {}, {}};
+  CheckOutcome(f.pf, path, force);
+  f.replay = ReplayFromParamFile(f.pf, path);
+  const Scene& scene = f.replay.scene;
+  f.law = CreateLaw(scene.law, scene);
+  f.body = BodyFromScene(scene);
+  f.speeds = MappingSpeeds(f.replay, *f.law);
+  std::sort(f.speeds.begin(), f.speeds.end());
+  f.mapping = MapLaw(scene, f.speeds, target);
+  for (double v : f.speeds) {
+    f.e_fit.push_back(
+        SimulateContact(*f.law, f.law->ParameterValues(), f.body, v, 0.0).restitution);
   }
-  if (scene.effects.drag != DragModel::kNone) {
-    r.notes.push_back("air drag (" + std::string(DragModelName(scene.effects.drag)) +
-                      ") is not exported: the simulator flies the ball in vacuum");
-  }
-  if (scene.effects.surface_compliance) {
-    r.notes.push_back("surface compliance is not exported: the wall is rigid");
-  }
-  if (scene.effects.buoyancy)
-    r.notes.push_back("buoyancy: gravity set to g_eff = " + FormatShortest(g));
+  return f;
 }
 
-// The packing scene's time step: linear springs k_n = 1e7 N/m between 1 cm steel spheres
-// (m* = m/2) with the fit's e at the middle measured speed.
-TimeStep PackingTimeStep(const ContactLaw& law, const ContactBody& body,
-                         const std::vector<double>& speeds, const ExportOptions& options,
-                         DeckInput* deck, ExportResult* out) {
-  ExportResult& r = *out;
-  DeckInput& in = *deck;
-  TimeStep ts;
-  const size_t mid = speeds.size() / 2;
-  in.packing_restitution =
-      options.packing_restitution > 0.0
-          ? options.packing_restitution
-          : SimulateContact(law, law.ParameterValues(), body, speeds[mid], 0.0).restitution;
-  const double m_sphere = 7800.0 * M_PI * 1e-6 / 6.0;
-  const double le = std::log(in.packing_restitution);
-  const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
-  const NativeModel pp(NativeForm::kLinear, false, 1e7,
-                       2.0 * zeta * std::sqrt(0.5 * m_sphere * 1e7));
-  const ContactBody pair = ContactBody::BallOnRigidWall(0.5 * m_sphere, 0.005);
-  ts.contact_time_s = pp.ContactTimeAt(pair, 1.0);
-  ts.dt_s = ts.contact_time_s / kPackingStepsPerContact;
-  ts.steps_per_contact = kPackingStepsPerContact;
-  ts.e_error = MaxTimeStepError(pp, pair, {0.1, 2.0}, ts.dt_s, 0.0);
-  r.run_time_s = options.packing_time_s;
-  r.packing_restitution = in.packing_restitution;
-  r.notes.push_back("packing: linear springs k_n = k_s = 1e7 N/m, mu = 0.3, pairwise e = " +
-                    FormatShortest(in.packing_restitution) +
-                    (options.packing_restitution > 0.0
-                         ? std::string(" (given, not the fit's)")
-                         : " (the fit's e at " + FormatShortest(speeds[mid]) + " m/s)"));
-  return ts;
+void CheckOutputDirectory(const std::string& dir, bool force) { CheckDirectory(dir, force); }
+void PrepareOutputDirectory(const std::string& dir, bool force) { PrepareDirectory(dir, force); }
+
+void AddVersionNotes(ExportResult* r, ExportTarget target, const std::string& requested) {
+  r->simulator_version = requested;
+  if (r->simulator_version.empty()) r->simulator_version = DetectSimulatorVersion(target);
+  const std::string verified = VerifiedSimulatorVersion(target);
+  if (r->simulator_version.empty()) {
+    r->simulator_version = verified;
+    r->notes.push_back(std::string(SimulatorProgram(target)) +
+                       " is not on PATH: written for the verified " + verified);
+  } else if (r->simulator_version != verified) {
+    r->notes.push_back(r->simulator_version + " is not the verified " + verified +
+                       ": its mappings and slip compensations are assumed; check with the "
+                       "integration suite");
+  }
 }
 
-// The deck's files in out_dir, each written atomically, and mapping.json (r: the files' names).
-void WriteDeckFiles(const std::string& out_dir, const std::string& params_path,
-                    const ExportOptions& options, const DeckInput& in, ExportResult* out) {
-  ExportResult& r = *out;
-  std::vector<std::pair<std::string, std::string>> files;
-  const bool bounce = options.scene == ExportScene::kBounce;
-  switch (options.target) {
-    case ExportTarget::kLammps:
-      files.push_back(bounce
-                          ? std::pair{std::string("in.bounce"), exporter::LammpsBounceDeck(in)}
-                          : std::pair{std::string("in.packing"), exporter::LammpsPackingDeck(in)});
-      break;
-    case ExportTarget::kLiggghts:
-      files.push_back(
-          bounce ? std::pair{std::string("in.bounce"), exporter::LiggghtsBounceDeck(in)}
-                 : std::pair{std::string("in.packing"), exporter::LiggghtsPackingDeck(in)});
-      break;
-    case ExportTarget::kYade:
-      files.push_back({"bounce.py", exporter::YadeBounceScript(in)});
-      break;
-  }
-  files.push_back({"run.sh", exporter::RunScript(in)});
-  files.push_back(bounce ? std::pair{std::string("impacts.awk"), exporter::ImpactsAwk()}
-                         : std::pair{std::string("packing.awk"), exporter::PackingAwk()});
-  PrepareDirectory(out_dir, options.force);  // only now: a refusal leaves nothing behind
-  for (const auto& f : files) r.files.push_back(f.first);
-  r.files.push_back("mapping.json");
-  const WriteOptions wo{.force = true, .inputs = {params_path}};
-  for (const auto& [name, text] : files) {
-    WriteFileAtomically((fs::path(out_dir) / name).string(), text, wo);
-  }
-  fs::permissions(fs::path(out_dir) / "run.sh",
-                  fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
-                  fs::perm_options::add);
-  WriteFileAtomically((fs::path(out_dir) / "mapping.json").string(),
-                      DumpJson(ExportResultJson(r), 2) + "\n", wo);
-}
-
-}  // namespace
+}  // namespace exporter
 
 ExportResult ExportDeck(const std::string& params_path, const std::string& out_dir,
                         const ExportOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw Error(ErrorCode::kUsage, "export: " + why);
+  if (options.scene == ExportScene::kColumn) {
+    return exporter::ExportColumn(params_path, out_dir, options);
+  }
   // Stage 1: the parameter file, its fit outcome, the replay scene, the output directory.
   const ParamFile pf = ReadParamFile(params_path);
   CheckOutcome(pf, params_path, options.force);
@@ -587,8 +574,18 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.target = ExportTargetName(options.target);
   r.scene = ExportSceneName(options.scene);
   r.law = scene.law.name;
-  r.law_json = ExportedLawJson(pf, *law, scene);
-  NoteSimulatorAndScene(options, scene, g, &r);
+  r.law_json = exporter::ExportedLawJson(pf, *law, scene);
+  ReadLawMisfit(pf, &r);
+  exporter::AddVersionNotes(&r, options.target, options.simulator_version);
+  if (scene.effects.drag != DragModel::kNone) {
+    r.notes.push_back("air drag (" + std::string(DragModelName(scene.effects.drag)) +
+                      ") is not exported: the simulator flies the ball in vacuum");
+  }
+  if (scene.effects.surface_compliance) {
+    r.notes.push_back("surface compliance is not exported: the wall is rigid");
+  }
+  if (scene.effects.buoyancy)
+    r.notes.push_back("buoyancy: gravity set to g_eff = " + FormatShortest(g));
 
   // Stage 2: the mapping over the measured speeds; refuse an approximation unless allowed.
   std::vector<double> speeds = MappingSpeeds(replay, *law);
@@ -630,7 +627,30 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
     in.release_height_m = plan.release_height_m;
     r.run_time_s = plan.run_time_s;
   } else {
-    ts = PackingTimeStep(*law, body, speeds, options, &in, &r);
+    // Packing: linear springs k_n = 1e7 N/m between 1 cm steel spheres (m* = m/2) with the fit's
+    // e at the middle measured speed.
+    const size_t mid = speeds.size() / 2;
+    in.packing_restitution =
+        options.packing_restitution > 0.0
+            ? options.packing_restitution
+            : SimulateContact(*law, law->ParameterValues(), body, speeds[mid], 0.0).restitution;
+    const double m_sphere = 7800.0 * M_PI * 1e-6 / 6.0;
+    const double le = std::log(in.packing_restitution);
+    const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
+    const NativeModel pp(NativeForm::kLinear, false, 1e7,
+                         2.0 * zeta * std::sqrt(0.5 * m_sphere * 1e7));
+    const ContactBody pair = ContactBody::BallOnRigidWall(0.5 * m_sphere, 0.005);
+    ts.contact_time_s = pp.ContactTimeAt(pair, 1.0);
+    ts.dt_s = ts.contact_time_s / kPackingStepsPerContact;
+    ts.steps_per_contact = kPackingStepsPerContact;
+    ts.e_error = MaxTimeStepError(pp, pair, {0.1, 2.0}, ts.dt_s, 0.0);
+    r.run_time_s = options.packing_time_s;
+    r.packing_restitution = in.packing_restitution;
+    r.notes.push_back("packing: linear springs k_n = k_s = 1e7 N/m, mu = 0.3, pairwise e = " +
+                      FormatShortest(in.packing_restitution) +
+                      (options.packing_restitution > 0.0
+                           ? std::string(" (given, not the fit's)")
+                           : " (the fit's e at " + FormatShortest(speeds[mid]) + " m/s)"));
   }
   r.time_step_s = ts.dt_s;
   r.time_step_e_error = ts.e_error;
@@ -643,7 +663,38 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   in.comments = HeaderComments(in, r, ts);
 
   // Stage 4: the files, each written atomically.
-  WriteDeckFiles(out_dir, params_path, options, in, &r);
+  std::vector<std::pair<std::string, std::string>> files;
+  const bool bounce = options.scene == ExportScene::kBounce;
+  switch (options.target) {
+    case ExportTarget::kLammps:
+      files.push_back(bounce
+                          ? std::pair{std::string("in.bounce"), exporter::LammpsBounceDeck(in)}
+                          : std::pair{std::string("in.packing"), exporter::LammpsPackingDeck(in)});
+      break;
+    case ExportTarget::kLiggghts:
+      files.push_back(
+          bounce ? std::pair{std::string("in.bounce"), exporter::LiggghtsBounceDeck(in)}
+                 : std::pair{std::string("in.packing"), exporter::LiggghtsPackingDeck(in)});
+      break;
+    case ExportTarget::kYade:
+      files.push_back({"bounce.py", exporter::YadeBounceScript(in)});
+      break;
+  }
+  files.push_back({"run.sh", exporter::RunScript(in)});
+  files.push_back(bounce ? std::pair{std::string("impacts.awk"), exporter::ImpactsAwk()}
+                         : std::pair{std::string("packing.awk"), exporter::PackingAwk()});
+  PrepareDirectory(out_dir, options.force);  // only now: a refusal leaves nothing behind
+  for (const auto& f : files) r.files.push_back(f.first);
+  r.files.push_back("mapping.json");
+  const WriteOptions wo{.force = true, .inputs = {params_path}};
+  for (const auto& [name, text] : files) {
+    WriteFileAtomically((fs::path(out_dir) / name).string(), text, wo);
+  }
+  fs::permissions(fs::path(out_dir) / "run.sh",
+                  fs::perms::owner_exec | fs::perms::group_exec | fs::perms::others_exec,
+                  fs::perm_options::add);
+  WriteFileAtomically((fs::path(out_dir) / "mapping.json").string(),
+                      DumpJson(ExportResultJson(r), 2) + "\n", wo);
   return r;
 }
 
@@ -660,6 +711,11 @@ nlohmann::json ExportResultJson(const ExportResult& r) {
           {"exact", r.exact},
           {"max_e_error", r.max_e_error},
           {"max_contact_time_rel_error", r.max_contact_time_error},
+          {"law_misfit_e", std::isfinite(r.law_misfit_e) ? nlohmann::json(r.law_misfit_e)
+                                                         : nlohmann::json(nullptr)},
+          {"law_misfit_tolerance_e", std::isfinite(r.law_misfit_tolerance_e)
+                                         ? nlohmann::json(r.law_misfit_tolerance_e)
+                                         : nlohmann::json(nullptr)},
           {"coefficients", coeffs},
           {"speeds_m_s", r.speeds_m_s},
           {"time_step_s", r.time_step_s},
@@ -671,8 +727,9 @@ nlohmann::json ExportResultJson(const ExportResult& r) {
           {"packing_restitution",
            r.packing_restitution > 0.0 ? nlohmann::json(r.packing_restitution) : nullptr},
           {"files", r.files},
+          {"column", r.column},
           {"notes", r.notes},
-          {"warnings", nlohmann::json::array()}};
+          {"warnings", WarningsJson(r.warnings)}};
 }
 
 }  // namespace bouncecal

@@ -182,6 +182,26 @@ const char* TruthSourceName(TruthSource s) {
   return s == TruthSource::kLaw ? "law" : "restitution";
 }
 
+namespace {
+
+// The restitution model with e shifted by `shift` (a varied drop).
+RestitutionModel Shifted(const RestitutionModel& m, double shift) {
+  if (shift == 0.0) return m;
+  switch (m.kind) {
+    case RestitutionModel::Kind::kConstant:
+      return RestitutionModel::Constant(m.e0 + shift);
+    case RestitutionModel::Kind::kPowerLaw:
+      return RestitutionModel::PowerLaw(m.e0 + shift, m.c, m.p);
+    case RestitutionModel::Kind::kFunction:
+      break;
+  }
+  const std::function<double(double)> f = m.function;
+  return RestitutionModel::Function([f, shift](double v) { return f(v) + shift; },
+                                    m.description + " + " + FormatGeneral(shift, 10));
+}
+
+}  // namespace
+
 std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& d) {
   Scene scene = spec.scene;
   scene.drop.first_impact_time_s = d.first_impact_s;
@@ -189,8 +209,16 @@ std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& d) {
     scene.drop.height_m = *d.height_m;
     scene.drop.impact_speed_m_s.reset();
   }
-  if (spec.truth_source == TruthSource::kLaw) return ImpactsFromLaw(scene, spec.truth);
-  return ImpactsFromRestitution(scene, spec.restitution, spec.truth);
+  TruthOptions truth = spec.truth;
+  if (d.scatter_seed) truth.scatter_seed = *d.scatter_seed;
+  if (spec.truth_source == TruthSource::kLaw) {
+    if (d.e_shift != 0.0)
+      throw Error(ErrorCode::kBadParameter,
+                  "drop at " + FormatGeneral(d.first_impact_s, 10) +
+                      " s: an e shift needs restitution truth (the law sets e)");
+    return ImpactsFromLaw(scene, truth);
+  }
+  return ImpactsFromRestitution(scene, Shifted(spec.restitution, d.e_shift), truth);
 }
 
 SynthResult Synthesize(const SynthSpec& spec) {

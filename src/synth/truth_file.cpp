@@ -50,6 +50,15 @@ nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result) {
         spec.truth.contact_s ? nlohmann::json(*spec.truth.contact_s) : nlohmann::json("hertz");
   }
   j["truth_options"] = truth_opts;
+  // A varied drop (PlanDrops) says how it differs; other drops keep their two-key form.
+  for (std::size_t d = 0; d < spec.drops.size() && d < j["drops"].size(); ++d) {
+    const SynthDrop& sd = spec.drops[d];
+    if (!sd.scatter_seed && sd.e_shift == 0.0) continue;
+    const std::optional<double> h = sd.height_m ? sd.height_m : spec.scene.drop.height_m;
+    j["drops"][d]["height_m"] = h ? nlohmann::json(*h) : nlohmann::json(nullptr);
+    j["drops"][d]["e_shift"] = sd.e_shift;
+    j["drops"][d]["scatter_seed"] = sd.scatter_seed.value_or(spec.truth.scatter_seed);
+  }
   double e_min = std::numeric_limits<double>::infinity(), e_max = -e_min;
   for (const auto& d : result.truth) {
     for (const TruthImpact& t : d) {
@@ -169,8 +178,11 @@ TruthFile LoadTruth(const std::string& path) {
   std::string key;
   try {
     key = "generator";
-    if (j.at(key).get<std::string>().rfind("bouncecal synth", 0) != 0) {
-      throw Error(ErrorCode::kBadParameter, path + ": not a bouncecal synth truth file");
+    const std::string generator = j.at(key).get<std::string>();
+    if (generator.rfind("bouncecal synth", 0) != 0 &&
+        generator.rfind("bouncecal realsound", 0) != 0) {
+      throw Error(ErrorCode::kBadParameter,
+                  path + ": not a bouncecal synth or realsound truth file");
     }
     key = "sample_rate_hz";
     t.sample_rate_hz = j.at(key).get<double>();

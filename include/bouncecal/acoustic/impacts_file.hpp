@@ -3,7 +3,10 @@
 // A user who sees a wrong impact deletes or adds it by hand, or brings times from another tool.
 // Formats (recognised from the content, not the extension):
 //   - `bouncecal detect --json` output (one recording's object, or an array holding one): every
-//     sequence with its impacts' time_s and sigma_s;
+//     sequence with its impacts' time_s and time_sigma_s. bouncecal.detect/2 lists each impact
+//     once, in its sequence: delete or add it there. bouncecal.detect/1 also listed the first
+//     chosen sequence's impacts at the top level ("impacts"); such a copy must agree with the
+//     sequence it copies, else the file is refused (an edit made where it is not read);
 //   - CSV with a header: a time column named time_s, t_impact_s, t_s, time or "Time (s)"
 //     (phyphox), optional sigma_s and sequence columns (`detect --csv` output, the shared
 //     annotation files); `,` or `;` or tab separated;
@@ -18,7 +21,8 @@
 //
 // Errors: Error(kInputMissing) for a missing/unreadable file; Error(kBadScene, exit 8: a malformed
 // input file) naming the file and line for anything else (no time column, non-numeric, negative,
-// unsorted or duplicate times, times beyond the recording, fewer than min_impacts in a sequence).
+// unsorted or duplicate times, times beyond the recording, fewer than min_impacts in a sequence,
+// a detect JSON of an unknown schema version or whose two copies of the impacts disagree).
 #pragma once
 
 #include <optional>

@@ -15,26 +15,35 @@
 //   packing: in.packing (LAMMPS, LIGGGHTS): the seed paper's validation scene (docs/physics.md §1)
 //            with the fitted damping; run.sh runs `mpirun -np ${NP:-1}`; writes packing.csv
 //            (z_m of every sphere) and the density between 0.005 and 0.045 m.
+//   column:  in.column (LAMMPS) or column.py (Yade) with column.data: seed 003's granular column
+//            collapse (column.hpp, docs/column.md) with the fitted damping between beads and,
+//            from options.column.wall_params, between beads and walls; run.sh (NP=N) runs it and
+//            writes profile.csv, front.csv and summary.json; column.json is the plan.
 // Refuses (Error) an unknown or newer schema, a fit whose outcome is not "converged" (unless
 // options.force), an existing output directory (unless options.force), and a law the target
-// cannot carry within options.max_e_error (unless options.allow_approximation).
+// cannot carry within options.max_e_error (unless options.allow_approximation). A converged fit
+// with the warning law_misfit_small exports; the decks' header and mapping.json state that
+// misfit beside the mapping's e error.
 //
 //   ExportOptions o; o.target = ExportTarget::kLammps;
 //   ExportResult r = ExportDeck("params.json", "out/", o);
 //   std::cout << DumpJson(ExportResultJson(r), 2);
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "bouncecal/core/warning.hpp"
+#include "bouncecal/export/column.hpp"
 #include "bouncecal/export/mapping.hpp"
 
 namespace bouncecal {
 
-enum class ExportScene { kBounce, kPacking };
-const char* ExportSceneName(ExportScene scene);  // "bounce", "packing"
+enum class ExportScene { kBounce, kPacking, kColumn };
+const char* ExportSceneName(ExportScene scene);  // "bounce", "packing", "column"
 bool ParseExportScene(const std::string& text, ExportScene* scene);
 
 struct ExportOptions {
@@ -52,6 +61,7 @@ struct ExportOptions {
   int packing_particles = 2000;
   double packing_time_s = 3.0;
   double packing_restitution = 0.0;  // pairwise e; 0 = the fit's e at the middle measured speed
+  ColumnOptions column;              // column scene (column.hpp)
   bool IsValid(std::string* error) const;
 };
 
@@ -74,7 +84,14 @@ struct ExportResult {
   double run_time_s = 0.0;           // simulated time
   int trace_every = 0;               // steps between trace samples
   double packing_restitution = 0.0;  // packing: the pairwise e used (0 for bounce)
+  nlohmann::json column;             // column: the plan (beads, box, contacts, q_phi); else null
   std::vector<double> speeds_m_s;
+  // The fitted law's own misfit, from the parameter file (fit.misfit_e, fit.misfit_tolerance_e;
+  // NaN when the file does not give it): how far the law's e(v) is from a smoother e(v) through
+  // the measured bounces, beside max_e_error, how far the simulator's law is from the fitted one.
+  double law_misfit_e = std::numeric_limits<double>::quiet_NaN();
+  double law_misfit_tolerance_e = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Warning> warnings;  // the fit's law_misfit_small, carried with its hint
   std::vector<std::string> notes;
   std::vector<std::string> files;
 };

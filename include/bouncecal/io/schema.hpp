@@ -32,7 +32,7 @@
 
 namespace bouncecal {
 
-inline constexpr const char* kDetectSchema = "bouncecal.detect/1";
+inline constexpr const char* kDetectSchema = "bouncecal.detect/2";
 inline constexpr const char* kAnalysisSchema = "bouncecal.analysis/1";
 inline constexpr const char* kSimulationSchema = "bouncecal.simulation/1";
 inline constexpr const char* kLawsSchema = "bouncecal.laws/1";
@@ -86,7 +86,7 @@ struct DetectionJsonOptions {
   std::vector<int> chosen;  // chosen sequences (indices into result.sequences)
   bool from_impacts_file = false;
 };
-// bouncecal.detect/1 (`detect --json`).
+// bouncecal.detect/2 (`detect --json`): each impact once, in its sequence.
 nlohmann::json DetectionJson(const std::string& file, const DetectionResult& result,
                              const DetectionJsonOptions& options);
 

@@ -216,8 +216,16 @@ inline Recording RenderRecording(const std::vector<TruthImpact>& one_drop,
 
 // A complete recipe for a test recording: scene + e(v) + render settings + drop placement.
 struct SynthDrop {
+  SynthDrop() = default;
+  SynthDrop(double first_impact, std::optional<double> height, double shift = 0.0,
+            std::optional<std::uint64_t> seed = std::nullopt)
+      : first_impact_s(first_impact), height_m(height), e_shift(shift), scatter_seed(seed) {}
   double first_impact_s = 1.0;     // file time of the drop's first impact
   std::optional<double> height_m;  // overrides scene.drop.height_m for this drop
+  // A varied drop (PlanDrops): its restitution shifted by e_shift (e0 of the constant or power
+  // law; added to a function's value), its own per-bounce scatter seed. Restitution truth only.
+  double e_shift = 0.0;
+  std::optional<std::uint64_t> scatter_seed;
 };
 // Where the truth impacts come from: the restitution model e(v) (ImpactsFromRestitution), or
 // the scene's contact law through the simulator (ImpactsFromLaw; restitution is then unused).
@@ -250,6 +258,29 @@ struct SynthResult {
   std::vector<std::vector<TruthImpact>> truth;  // per drop
   Recording recording;
 };
+// Several drops in one file, placed one after another: each drop's first impact comes a gap
+// after the previous drop's last impact, the gap drawn uniformly from [gap_min_s, gap_max_s].
+// Identical drops (both spreads 0: one drop repeated, as an automated dropper repeats it; with
+// scatter_e every copy bounces the same way) or varied ones: each drop's height times
+// U(1 - height_spread, 1 + height_spread), its e shifted by U(-e_spread, +e_spread), its own
+// scatter seed. Everything random comes from seed.
+struct DropPlan {
+  int drops = 1;                // 1 .. kMaxDrops
+  double first_impact_s = 0.5;  // the first drop's first impact
+  double gap_min_s = 1.5;       // last impact of one drop -> first impact of the next
+  double gap_max_s = 1.5;       // >= gap_min_s (equal: a fixed gap)
+  double height_spread = 0.0;   // relative, in [0, 1)
+  double e_spread = 0.0;        // absolute, in [0, 0.5)
+  std::uint64_t seed = 1;
+  static constexpr int kMaxDrops = 1000;
+  bool varied() const { return height_spread > 0.0 || e_spread > 0.0; }
+  bool IsValid(std::string* error) const;
+};
+// The drops of the plan for spec's scene, restitution and truth options (each drop's length from
+// its own truth). Throws Error(kBadParameter) for an invalid plan, e_spread with law truth, or
+// a drop whose shifted e leaves [0, 1].
+std::vector<SynthDrop> PlanDrops(const SynthSpec& spec, const DropPlan& plan);
+
 // Truth for every drop (from spec.truth_source), then RenderRecording.
 SynthResult Synthesize(const SynthSpec& spec);
 // The truth of one drop of spec at file time first_impact_s (height: the drop's override).
@@ -264,7 +295,8 @@ std::vector<TruthImpact> DropTruth(const SynthSpec& spec, const SynthDrop& drop)
 //  with a rebound (v_out > 0),
 //  "render": {...}, "drops": [{"impacts": [{"index", "time_s", "onset_s", "v_in_m_s",
 //  "v_out_m_s", "e", "contact_s", "amplitude", "snr_db", "clipped", "amplitude_per_channel",
-//  "snr_db_per_channel"}...]}], "distractors": [...]}
+//  "snr_db_per_channel"}...]} (a varied drop of PlanDrops adds "height_m", "e_shift",
+//  "scatter_seed")], "distractors": [...]}
 nlohmann::json TruthJson(const SynthSpec& spec, const SynthResult& result);
 // The same document for impacts that came from elsewhere (e.g. the contact-law simulator):
 // everything but "restitution" and "truth_options"; add your own keys to say where the

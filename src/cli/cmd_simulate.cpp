@@ -144,7 +144,7 @@ std::string LawLabel(const Scene& scene, const ContactLaw& law, const std::vecto
 }
 
 // A simulation the integrator gave up on, or with a non-finite number anywhere, is not a
-// result: exit 9 naming the law and its parameters (README "Exit codes"), never "inf"/"nan" or
+// result: exit 9 naming the law and its parameters (docs/cli.md "Exit codes"), never "inf"/"nan" or
 // a JSON null where a number is documented.
 void CheckUsable(const Scene& scene, const ContactLaw& law, const std::vector<double>& p,
                  const Simulation& sim) {

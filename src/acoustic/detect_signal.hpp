@@ -29,9 +29,8 @@ int LongestSequence(const std::vector<Sequence>& seqs);
 // The onset detector's options in a detection with `options`.
 OnsetOptions OnsetOptionsOf(const DetectOptions& options);
 
-// The stages of one signal x at rate_hz (offset_s: where x starts in the file, for messages;
-// times are seconds from x's start).
-SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz, double offset_s,
+// The stages of one signal x at rate_hz (times are seconds from x's start).
+SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz,
                                const DetectOptions& options);
 
 }  // namespace bouncecal

@@ -59,6 +59,20 @@ void RemoveMembers(Sequence* s, const std::vector<bool>& drop, const std::string
             });
 }
 
+// A removal near the end that leaves fewer than two members after it leaves them no interval pair
+// (an e needs two consecutive flights) and only the prediction across the gap to rest on: they go
+// with it, and the last warning says so.
+void DropDanglingTail(std::vector<bool>* drop, std::vector<Warning>* warnings) {
+  const auto last = std::find(drop->rbegin(), drop->rend(), true);
+  if (last == drop->rend() || warnings->empty()) return;
+  const std::size_t k = static_cast<std::size_t>(drop->rend() - last) - 1;
+  const std::size_t after = drop->size() - 1 - k;
+  if (after == 0 || after >= 2) return;
+  for (std::size_t j = k + 1; j < drop->size(); ++j) (*drop)[j] = true;
+  warnings->back().message +=
+      ", and so was the impact after it (no interval pair is left past the gap)";
+}
+
 }  // namespace
 
 bool PlausibilityOptions::IsValid(std::string* error) const {
@@ -99,9 +113,19 @@ double LevelAtUnitSpeedDb(const Sequence& s) {
 double MeanIntervalRatio(const Sequence& s) {
   const auto& q = s.impacts;
   if (q.size() < 3) return kNaN;
+  // Interval j (impacts j -> j + 1) is not one flight after a flagged gap, nor a regular one
+  // after an irregular step: ratios that involve them say nothing about e.
+  std::vector<bool> flagged(q.size(), false);
+  for (int j : s.missed_after)
+    if (j >= 0 && static_cast<std::size_t>(j) < q.size())
+      flagged[static_cast<std::size_t>(j)] = true;
+  for (int j : s.irregular_after)
+    if (j >= 0 && static_cast<std::size_t>(j) < q.size())
+      flagged[static_cast<std::size_t>(j)] = true;
   double sum = 0.0;
   int n = 0;
   for (std::size_t k = 2; k < q.size(); ++k) {
+    if (flagged[k - 2] || flagged[k - 1]) continue;
     const double d0 = q[k - 1].time_s - q[k - 2].time_s, d1 = q[k].time_s - q[k - 1].time_s;
     if (!(d0 > 0.0) || !(d1 > 0.0)) continue;
     sum += std::log(d1 / d0);
@@ -132,6 +156,7 @@ std::vector<Warning> RemoveUntimedMembers(Sequence* s, const PlausibilityOptions
          "listen to what was kept (detect --click-track FILE.wav); if a bounce is "
          "missing, record closer to the impact point or in a quieter room"});
   }
+  DropDanglingTail(&drop, &out);
   if (!out.empty()) RemoveMembers(s, drop, "sigma_removed");
   return out;
 }
@@ -152,6 +177,7 @@ std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions&
                    "to keep quieter impacts lower --min-snr-db (check them with detect "
                    "--click-track FILE.wav)"});
   }
+  DropDanglingTail(&drop, &out);
   if (!out.empty()) RemoveMembers(s, drop, "low_snr_removed");
   return out;
 }

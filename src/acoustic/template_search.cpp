@@ -524,4 +524,35 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   return true;
 }
 
+double NccNoiseSpread(const OnsetResult& r, double t0_s, double t1_s, int max_positions) {
+  const std::vector<double>& h = r.template_wave;
+  const std::vector<float>& w = r.whitened;
+  const long n = static_cast<long>(w.size()), tl = static_cast<long>(h.size());
+  if (h.empty() || !(r.rate_hz > 0.0) || max_positions < 3) return 0.0;
+  double hh = 0.0;
+  for (double v : h) hh += v * v;
+  auto start_of = [&](double t) {
+    return r.template_start + std::lround((t - r.template_onset_s) * r.rate_hz);
+  };
+  const long lo = std::max(0L, start_of(t0_s)), hi = std::min(n - tl, start_of(t1_s));
+  if (hi - lo < 3 || !(hh > 0.0)) return 0.0;
+  const long step = std::max(1L, (hi - lo) / max_positions);
+  std::vector<double> c;
+  for (long l = lo; l < hi; l += step) {
+    double xy = 0.0, yy = 0.0;
+    for (long j = 0; j < tl; ++j) {
+      const double y = w[static_cast<std::size_t>(l + j)];
+      xy += h[static_cast<std::size_t>(j)] * y;
+      yy += y * y;
+    }
+    c.push_back(yy > 0.0 ? xy / std::sqrt(hh * yy) : 0.0);
+  }
+  const auto mid = c.begin() + static_cast<std::ptrdiff_t>(c.size() / 2);
+  std::nth_element(c.begin(), mid, c.end());
+  const double med = *mid;
+  for (double& v : c) v = std::fabs(v - med);
+  std::nth_element(c.begin(), mid, c.end());
+  return 1.4826 * *mid;
+}
+
 }  // namespace bouncecal

@@ -144,7 +144,8 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
         << CsvNumber(b.v_out_m_s) << "," << CsvNumber(b.v_out_sigma_m_s) << "," << CsvNumber(b.e)
         << "," << CsvNumber(b.e_total_sigma) << "," << CsvNumber(b.e_sigma) << ","
         << CsvNumber(b.eta) << "," << CsvNumber(b.eta_sigma) << ","
-        << (contact ? CsvNumber(b.contact_s) : "") << "," << (b.irregular ? 1 : 0) << "\n";
+        << (contact && b.contact_s > 0.0 ? CsvNumber(b.contact_s) : "") << ","
+        << (b.irregular ? 1 : 0) << "\n";
     }
     std::cout << o.str();
     return;

@@ -34,6 +34,10 @@ struct Impact {
   double snr_db = 0.0;     // impact-to-background ratio of the whitened signal, dB
   double score = 0.0;      // detector confidence in [0, 1] (template correlation)
   bool clipped = false;    // the impact's peak is clipped
+  // Energy rise of the recorded (not whitened) signal at the onset, dB: the first millisecond
+  // after it over the 3.5 ms before it (RawRiseDb). A new impact adds its attack to whatever rings
+  // (> 0 dB); a re-trigger inside a decaying sound does not. Set for onset candidates.
+  double rise_db = 0.0;
 };
 
 // A member taken out of a sequence by the plausibility stage (plausibility.hpp), and why.

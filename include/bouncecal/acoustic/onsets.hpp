@@ -87,6 +87,11 @@ struct OnsetResult {
 bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples, double t_center_s,
                     double half_window_s, double min_ncc, Impact* out, double edge_penalty = 0.0);
 
+// The spread of the template's NCC with the whitened signal where it meets no impact: 1.4826 x
+// the median absolute deviation over (at most max_positions evenly spaced) template positions of
+// [t0_s, t1_s). 0 when the stretch is too short or outside the signal.
+double NccNoiseSpread(const OnsetResult& result, double t0_s, double t1_s, int max_positions);
+
 // Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
 // e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin
 // (Makhoul 1975, Proc. IEEE 63(4), eqs. 38-45). r[0] must be > 0.

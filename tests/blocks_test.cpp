@@ -220,6 +220,35 @@ TEST(DetectBlocks, EveryDropOfAManyDropRecordingIsFound) {
   }
 }
 
+// Blocks bound memory only: with 20-s blocks and drops 7 s apart (5.5 s of bouncing, 1.5 s of
+// room noise between), most cuts fall near or inside a drop, and still every drop is one whole
+// sequence, as in the detection of the whole file at once (before, a drop crossing a cut was
+// reported in two pieces with block_split).
+TEST(DetectBlocks, DropsAcrossBlockCutsAreWhole) {
+  ScratchDir dir("bc_blocks");
+  std::vector<std::vector<TruthImpact>> truth;
+  const std::string wav = ManyDrops(dir, 12, 7.0, 9, &truth);
+  DetectOptions whole_o;
+  whole_o.max_block_s = 1000.0;
+  const DetectionResult whole = DetectImpactsInFile(wav, whole_o);
+  DetectOptions o;
+  o.max_block_s = 20.0;
+  const DetectionResult blocked = DetectImpactsInFile(wav, o);
+  EXPECT_FALSE(HasWarning(blocked, "block_split"));
+  ASSERT_EQ(whole.sequences.size(), truth.size());
+  ASSERT_EQ(blocked.sequences.size(), truth.size());
+  // The same first impact; the tail may end an impact or three apart (a block's whitening and
+  // template are fitted on its own audio).
+  for (std::size_t d = 0; d < truth.size(); ++d) {
+    EXPECT_NEAR(static_cast<double>(blocked.sequences[d].impacts.size()),
+                static_cast<double>(whole.sequences[d].impacts.size()), 3.0)
+        << d;
+    EXPECT_NEAR(blocked.sequences[d].impacts.front().time_s,
+                whole.sequences[d].impacts.front().time_s, 1e-6)
+        << d;
+  }
+}
+
 // Every field of two detections, compared exactly (doubles to the bit).
 void ExpectSameDetection(const DetectionResult& a, const DetectionResult& b,
                          const std::string& what) {

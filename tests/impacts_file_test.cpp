@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <fstream>
 #include <string>
@@ -149,7 +151,12 @@ TEST_F(ImpactsCli, RoundTripFromDetectJsonWithOneImpactRemoved) {
       EXPECT_NEAR(j0["bounces"][k]["e"].get<double>(), j1["bounces"][k]["e"].get<double>(), 1e-12);
     }
   }
-  // Impact 5 deleted by hand: one bounce fewer, the gap flagged, e around it not given.
+  // Impact 5 deleted by hand: one bounce fewer, the gap flagged, e around it not given (the
+  // detection's own flags further on move down by one).
+  std::vector<int> flags{4};
+  for (const auto& k : doc["sequences"][0]["missed_after"])
+    flags.push_back(k.get<int>() > 4 ? k.get<int>() - 1 : k.get<int>());
+  std::sort(flags.begin(), flags.end());
   doc["sequences"][0]["impacts"].erase(5);
   const std::string cut = dir_ / "cut.json";
   std::ofstream(cut) << doc.dump();
@@ -158,7 +165,7 @@ TEST_F(ImpactsCli, RoundTripFromDetectJsonWithOneImpactRemoved) {
   ASSERT_EQ(a2.exit_code, 0) << a2.err;
   const auto j2 = nlohmann::json::parse(a2.out);
   EXPECT_EQ(j2["bounces"].size(), j0["bounces"].size() - 1);
-  EXPECT_EQ(j2["sequence"]["missed_after"], nlohmann::json::array({4}));
+  EXPECT_EQ(j2["sequence"]["missed_after"], nlohmann::json(flags));
   bool warned = false;
   for (const auto& w : j2["warnings"]) warned = warned || w["code"] == "missed_impact";
   EXPECT_TRUE(warned) << a2.out;

@@ -20,11 +20,15 @@ namespace {
 constexpr double kSilencePeak = 1.0 / 32768.0;
 
 // Long recordings are detected in blocks of at most DetectOptions::max_block_s (and
-// kMaxBlockFrames frames: 44 s at 384 kHz), so that memory does not grow with the length. A
-// block ends at the quietest moment of its last quarter (at most kMaxCutSearchS): between two
-// drops, not inside a sequence, whose impacts come at most about a second apart. Each block
-// keeps kBlockMarginS of audio on both sides of its cuts as context (whitening fit, running
-// medians); a sequence belongs to the block its first impact is in.
+// kMaxBlockFrames frames: 44 s at 384 kHz), so that memory does not grow with the length; blocks
+// bound memory only, they decide nothing. A block's own sequences are those that start before its
+// cut, the quietest moment of its third quarter (at most kMaxCutSearchS long), and it reads a
+// look-ahead beyond the cut (its last quarter, at most kMaxCutSearchS) so that a drop that began
+// before the cut is tracked whole: a drop's bounces last d0 / (1 - e), 17 s for a ball of e 0.95
+// dropped from 1 m. The next block starts kBlockMarginS before the cut (context for the
+// whitening fit and running medians) and owns the sequences that start after both the cut and
+// the last member of the sequences merged before it. A sequence that reaches the end of the
+// look-ahead gets the warning block_split.
 constexpr std::int64_t kMaxBlockFrames = std::int64_t{1} << 24;
 constexpr double kBlockMarginS = 0.5;
 constexpr double kMaxCutSearchS = 30.0;
@@ -72,10 +76,11 @@ std::size_t QuietestCut(const std::vector<std::vector<float>>& block, std::size_
 }
 
 // Adds what one block found (times already in file seconds) to `into`: the candidates in
-// [own_lo_s, own_hi_s) and the sequences that start there. A sequence with impacts past
-// own_hi_s was cut by the block's end: block_split.
-void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, bool last_block,
-                SignalAcrossBlocks* into) {
+// [own_lo_s, own_hi_s) and the sequences that start there after the last member merged before.
+// A sequence that reaches the end of the block's audio (data_end_s) may have been cut short:
+// block_split.
+void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, double data_end_s,
+                bool last_block, SignalAcrossBlocks* into) {
   SignalDetection& m = into->merged;
   m.hop_samples = d.hop_samples;
   if (!d.failure.empty()) into->failure = d.failure;
@@ -83,16 +88,17 @@ void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, bool last_b
     if (i.time_s >= own_lo_s && i.time_s < own_hi_s) m.candidates.push_back(i);
   for (Sequence& q : d.sequences) {
     const double t0 = q.impacts.front().time_s;
-    if (t0 < own_lo_s || t0 >= own_hi_s) continue;
-    if (!last_block && q.impacts.back().time_s >= own_hi_s) {
+    if (t0 < own_lo_s || t0 >= own_hi_s || t0 <= into->merged_until_s) continue;
+    if (!last_block && q.impacts.back().time_s >= data_end_s - kBlockMarginS) {
       char msg[300];
       std::snprintf(msg, sizeof msg,
-                    "the sequence from %.4f s runs past %.4f s, where the recording was cut "
-                    "into analysis blocks (DetectOptions::max_block_s): its impacts after the "
-                    "cut may be missing or reported as a separate sequence",
-                    t0, own_hi_s);
-      d.warnings.push_back({"block_split", msg, -1});
+                    "the sequence from %.4f s runs to %.4f s, where the audio read for one "
+                    "analysis block ends (DetectOptions::max_block_s): its later impacts may be "
+                    "missing",
+                    t0, data_end_s);
+      d.warnings.push_back({"block_split", msg, -1, "--start/--end around this drop"});
     }
+    into->merged_until_s = q.impacts.back().time_s;
     m.sequences.push_back(std::move(q));
   }
   for (Warning& w : d.warnings) {
@@ -108,6 +114,7 @@ struct Block {
   std::vector<std::vector<float>> channels;  // its frames, every channel
   std::int64_t start = 0;                    // its first frame in the file
   double own_lo_s = 0.0, own_hi_s = 0.0;     // the sequences that start in here are its own
+  double data_end_s = 0.0;                   // where its audio ends (file seconds)
   bool last = false;
 };
 
@@ -161,14 +168,14 @@ BlockResult DetectBlock(const Block& b, double rate, const std::vector<int>& cho
 }
 
 // Adds one block's results to the signals' (in block order: the merged result is the serial one).
-void MergeBlockResult(BlockResult r, double own_lo_s, double own_hi_s, bool last,
+void MergeBlockResult(BlockResult r, double own_lo_s, double own_hi_s, double data_end_s, bool last,
                       std::vector<SignalAcrossBlocks>* signals) {
   for (std::size_t ci = 0; ci < signals->size(); ++ci) {
     SignalAcrossBlocks& sig = (*signals)[ci];
     sig.peak = std::max(sig.peak, r.peak[ci]);
     if (!r.found[ci]) continue;
     sig.sound = true;
-    MergeBlock(std::move(*r.found[ci]), own_lo_s, own_hi_s, last, &sig);
+    MergeBlock(std::move(*r.found[ci]), own_lo_s, own_hi_s, data_end_s, last, &sig);
   }
 }
 
@@ -193,12 +200,13 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
       16, std::min(kMaxBlockFrames, static_cast<std::int64_t>(options.max_block_s * rate)));
   const std::int64_t margin = static_cast<std::int64_t>(kBlockMarginS * rate);
   const std::int64_t search = std::min(cap / 4, static_cast<std::int64_t>(kMaxCutSearchS * rate));
+  // (the look-ahead is `search` long too)
   const int threads = ResolveThreads(options.threads);
   DetectOptions per_block = options;
   per_block.threads = threads;
 
   struct InFlight {
-    double own_lo_s, own_hi_s;
+    double own_lo_s, own_hi_s, data_end_s;
     bool last;
     std::future<BlockResult> result;
   };
@@ -217,7 +225,7 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
   } drain{&in_flight, &cancelled};
   auto merge_oldest = [&] {
     InFlight& f = in_flight.front();
-    MergeBlockResult(f.result.get(), f.own_lo_s, f.own_hi_s, f.last, signals);
+    MergeBlockResult(f.result.get(), f.own_lo_s, f.own_hi_s, f.data_end_s, f.last, signals);
     in_flight.pop_front();
   };
   reader->Skip(i0);
@@ -236,33 +244,32 @@ void DetectBlocks(AudioReader* reader, std::int64_t i0, std::int64_t i1,
     b.start = buf_start;
     b.own_lo_s = own_lo_s;
     b.last = buf_end >= i1 || buf_end - buf_start < cap;
-    std::int64_t cut = buf_end, block_end = buf_end;
-    if (!b.last) {
-      const std::size_t lo = static_cast<std::size_t>(buf_end - search - buf_start);
-      const std::size_t hi = static_cast<std::size_t>(buf_end - margin - buf_start);
+    std::int64_t cut = buf_end;
+    if (!b.last) {  // the third quarter, before the look-ahead
+      const std::size_t lo = static_cast<std::size_t>(buf_end - 2 * search - buf_start);
+      const std::size_t hi = static_cast<std::size_t>(buf_end - search - buf_start);
       cut = buf_start + static_cast<std::int64_t>(QuietestCut(buf, lo, hi, rate));
-      block_end = std::min(buf_end, cut + margin);
     }
     b.own_hi_s = b.last ? std::numeric_limits<double>::infinity() : static_cast<double>(cut) / rate;
-    // The block takes frames [buf_start, block_end); the next starts kBlockMarginS before the cut.
+    b.data_end_s = static_cast<double>(buf_end) / rate;
+    // The block takes frames [buf_start, buf_end); the next starts kBlockMarginS before the cut.
     const std::int64_t next = b.last ? buf_end : std::max(buf_start, cut - margin);
     for (std::vector<float>& c : buf) {
       std::vector<float> rest(c.begin() + static_cast<std::ptrdiff_t>(next - buf_start), c.end());
-      c.resize(static_cast<std::size_t>(block_end - buf_start));
       b.channels.push_back(std::move(c));
       c = std::move(rest);
     }
     buf_start = next;
     own_lo_s = b.own_hi_s;
-    const double lo_s = b.own_lo_s, hi_s = b.own_hi_s;
+    const double lo_s = b.own_lo_s, hi_s = b.own_hi_s, end_s = b.data_end_s;
     const bool last = b.last;
     if ((first && last) || threads == 1) {  // on this thread, with all the threads for its stages
-      MergeBlockResult(DetectBlock(b, rate, choices, per_block), lo_s, hi_s, last, signals);
+      MergeBlockResult(DetectBlock(b, rate, choices, per_block), lo_s, hi_s, end_s, last, signals);
     } else {
       auto job = [&, b = std::move(b)] {
         return cancelled.load() ? BlockResult{} : DetectBlock(b, rate, choices, per_block);
       };
-      in_flight.push_back({lo_s, hi_s, last, Async(threads, std::move(job))});
+      in_flight.push_back({lo_s, hi_s, end_s, last, Async(threads, std::move(job))});
       while (static_cast<int>(in_flight.size()) > threads) merge_oldest();
     }
     if (last) break;

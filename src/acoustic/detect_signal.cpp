@@ -17,28 +17,20 @@ namespace bouncecal {
 namespace {
 
 // Guided search: the window spans kGuidedReach spreads of the predicted time on each side
-// (TrackOptions::max_z), the spread of log r the sequence's own (RatioSpread) but at least
+// (TrackOptions::max_z), the spread of log r the sequence's own (TrendAt) but at least
 // kMinRatioSpread (a quarter of TrackOptions::scatter_sigma: real balls scatter by >= 0.005 in e).
 constexpr double kGuidedReach = 4.0;
 constexpr double kMinRatioSpread = 0.005;
 // Ranking penalty at the window edge (NCC units): near the noise level a noise peak 0.4 ms from
 // the prediction matched as well as the impact (corpus: NCC 0.37 vs 0.36, a 433 us error).
 constexpr double kGuidedEdgePenalty = 0.15;
-// Median of the last (up to) three interval ratios of impacts [0, end).
-double RecentRatio(const std::vector<Impact>& q, std::size_t end) {
-  std::vector<double> r;
-  for (std::size_t k = end - 1; k >= 2 && r.size() < 3; --k)
-    r.push_back((q[k].time_s - q[k - 1].time_s) / (q[k - 1].time_s - q[k - 2].time_s));
-  std::sort(r.begin(), r.end());
-  return r[r.size() / 2];
-}
 
 // One look where a sequence predicts an impact: the best template match in a window
 // kGuidedReach spreads wide around the prediction (FindByTemplate, ranked by NCC - edge
 // penalty towards the window's edges) and its p-value, the chance that noise alone ranks as well
 // somewhere in the window: the NCC where the template meets no impact spreads by
-// s = max(1 / sqrt(L), the window's robust spread) (whitened white noise: 1 / sqrt(L) for a
-// template of L samples).
+// s = max(1 / sqrt(L), its robust spread in the middle of the flight before) (whitened white
+// noise: 1 / sqrt(L) for a template of L samples).
 struct Look {
   Impact match;
   bool any = false;
@@ -49,9 +41,11 @@ Look LookAt(const OnsetResult& onsets, const std::vector<float>& x, double t_c, 
   Look look;
   // At least two samples either side (the interpolated peak needs its neighbours).
   const double half = std::max(kGuidedReach * ratio_spread * dn, 2.0 / onsets.rate_hz);
-  double spread = 0.0;
-  look.any = FindByTemplate(onsets, x, t_c, half, -1.0, &look.match, kGuidedEdgePenalty, &spread);
+  look.any = FindByTemplate(onsets, x, t_c, half, -1.0, &look.match, kGuidedEdgePenalty);
   if (!look.any) return look;
+  // The noise's NCC measured in the middle of the flight before (what rings there, away from
+  // both impacts).
+  const double spread = NccNoiseSpread(onsets, t_c - 2.0 * dn / 3.0, t_c - dn / 3.0, 256);
   const double s =
       std::max(spread, 1.0 / std::sqrt(static_cast<double>(onsets.template_wave.size())));
   // The match was ranked by NCC - edge_penalty u^2 (u: distance from the centre in half
@@ -74,12 +68,18 @@ Look LookAt(const OnsetResult& onsets, const std::vector<float>& x, double t_c, 
 constexpr double kGuidedMemberP = 0.05;
 constexpr double kGuidedFalseAlarm = 0.01;
 
-// The spread of log r about the sequence's trend over impacts [0, end): 1.4826 MAD of the
-// changes of log r between successive flights over the last kSpreadFlights regular ones (flights
-// across a flagged gap or after an irregular step left out), / sqrt 2 (each change holds two
-// flights' scatter), with the last flight's timing noise, at least kMinRatioSpread.
-constexpr std::size_t kSpreadFlights = 8;
-double RatioSpread(const Sequence& seq, std::size_t end) {
+// The trend of log r at the end of impacts [0, end): a straight line in the flight's index fitted
+// to the last kTrendFlights regular ratios (flights across a flagged gap or next to an irregular
+// step left out; e drifts steadily with the impact speed, and with drag), and the spread of the
+// ratios about it: 1.4826 MAD of the residuals, with the last flight's timing noise, at least
+// kMinRatioSpread. With fewer than 3 regular ratios: their median and the floor.
+constexpr std::size_t kTrendFlights = 6;
+struct RatioTrend {
+  double log_r = 0.0;  // predicted log ratio of the next flight
+  double slope = 0.0;  // change of log r per flight
+  double spread = kMinRatioSpread;
+};
+RatioTrend TrendAt(const Sequence& seq, std::size_t end) {
   const std::vector<Impact>& q = seq.impacts;
   auto flagged = [&](std::size_t j) {  // interval j -> j + 1
     const int k = static_cast<int>(j);
@@ -88,22 +88,42 @@ double RatioSpread(const Sequence& seq, std::size_t end) {
            std::find(seq.irregular_after.begin(), seq.irregular_after.end(), k) !=
                seq.irregular_after.end();
   };
-  std::vector<double> change;
-  for (std::size_t k = end - 1; k >= 3 && change.size() < kSpreadFlights; --k) {
-    if (flagged(k - 1) || flagged(k - 2) || flagged(k - 3)) continue;
-    const double r1 = (q[k].time_s - q[k - 1].time_s) / (q[k - 1].time_s - q[k - 2].time_s);
-    const double r0 = (q[k - 1].time_s - q[k - 2].time_s) / (q[k - 2].time_s - q[k - 3].time_s);
-    change.push_back(std::fabs(std::log(r1 / r0)));
+  std::vector<double> x, y;  // flight index of the later flight, log r
+  for (std::size_t k = end - 1; k >= 2 && y.size() < kTrendFlights; --k) {
+    if (flagged(k - 1) || flagged(k - 2)) continue;
+    x.push_back(static_cast<double>(k));
+    y.push_back(std::log((q[k].time_s - q[k - 1].time_s) / (q[k - 1].time_s - q[k - 2].time_s)));
   }
-  double spread = kMinRatioSpread;
-  if (change.size() >= 2) {
-    const auto mid = change.begin() + static_cast<std::ptrdiff_t>(change.size() / 2);
-    std::nth_element(change.begin(), mid, change.end());
-    spread = std::max(spread, 1.4826 * *mid / std::sqrt(2.0));
+  RatioTrend t;
+  const double next = static_cast<double>(end);
+  if (y.size() < 3) {
+    if (y.empty()) {
+      t.log_r = std::log((q[end - 1].time_s - q[end - 2].time_s) /
+                         (q[end - 2].time_s - q[end - 3].time_s));
+    } else {
+      std::vector<double> sorted = y;
+      std::sort(sorted.begin(), sorted.end());
+      t.log_r = sorted[sorted.size() / 2];
+    }
+  } else {
+    const double n = static_cast<double>(y.size());
+    double mx = 0.0, my = 0.0;
+    for (std::size_t j = 0; j < y.size(); ++j) mx += x[j] / n, my += y[j] / n;
+    double sxx = 0.0, sxy = 0.0;
+    for (std::size_t j = 0; j < y.size(); ++j)
+      sxx += (x[j] - mx) * (x[j] - mx), sxy += (x[j] - mx) * (y[j] - my);
+    t.slope = sxx > 0.0 ? sxy / sxx : 0.0;
+    t.log_r = my + t.slope * (next - mx);
+    std::vector<double> res;
+    for (std::size_t j = 0; j < y.size(); ++j)
+      res.push_back(std::fabs(y[j] - my - t.slope * (x[j] - mx)));
+    const auto mid = res.begin() + static_cast<std::ptrdiff_t>(res.size() / 2);
+    std::nth_element(res.begin(), mid, res.end());
+    t.spread = std::max(t.spread, 1.4826 * *mid);
   }
   const double d = q[end - 1].time_s - q[end - 2].time_s;
-  const double timing = std::sqrt(2.0) * q[end - 1].sigma_s / d;
-  return std::hypot(spread, timing);
+  t.spread = std::hypot(t.spread, std::sqrt(2.0) * q[end - 1].sigma_s / d);
+  return t;
 }
 
 // Gaps the tracker flagged: m unheard impacts (the m that makes the gap closest to d (r + ... +
@@ -121,7 +141,7 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
       continue;
     }
     const double d = q->impacts[k].time_s - q->impacts[k - 1].time_s;
-    const double r0 = std::clamp(RecentRatio(q->impacts, k + 1), to.min_ratio, to.max_ratio);
+    const double r0 = std::clamp(std::exp(TrendAt(*q, k + 1).log_r), to.min_ratio, to.max_ratio);
     auto flights = [](double r, int n) {  // r + r^2 + ... + r^n
       double sum = 0.0, p = 1.0;
       for (int j = 1; j <= n; ++j) sum += (p *= r);
@@ -142,7 +162,7 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
     for (int j = 1; j <= m; ++j) {
       dn *= r;
       t += dn;
-      const Look look = LookAt(onsets, x, t, dn, RatioSpread(*q, k + 1));
+      const Look look = LookAt(onsets, x, t, dn, TrendAt(*q, k + 1).spread);
       if (look.any && look.p <= kGuidedMemberP) found.push_back(look.match);
     }
     q->impacts.insert(q->impacts.begin() + static_cast<std::ptrdiff_t>(k + 1), found.begin(),
@@ -167,25 +187,60 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
 // kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, the
 // others as unheard impacts (missed_after). It stops where no run is significant: the noise won
 // or the ball stopped. Returns whether the sequence grew.
+// The last single flight of q when the next is predicted at ratio r: its last interval, or, when
+// that interval spans unheard impacts (missed_after), the last of the k flights that best fill it
+// after the interval before it.
+double LastFlight(const Sequence& q, double r) {
+  const auto& t = q.impacts;
+  const std::size_t m = t.size();
+  const double gap = t[m - 1].time_s - t[m - 2].time_s;
+  const auto flagged = [&](std::size_t j) {
+    return std::find(q.missed_after.begin(), q.missed_after.end(), static_cast<int>(j)) !=
+           q.missed_after.end();
+  };
+  if (!flagged(m - 2)) return gap;
+  if (m < 3 || flagged(m - 3)) return gap * r / (1.0 + r);
+  const double before = t[m - 2].time_s - t[m - 3].time_s;
+  double best = gap, best_miss = 1e300, sum = 0.0, p = 1.0;
+  for (int k = 1; k <= 5; ++k) {
+    sum += (p *= r);
+    const double miss = std::fabs(std::log(gap / (before * sum)));
+    if (miss < best_miss) best_miss = miss, best = before * p;
+  }
+  return best;
+}
+
+// The tail: up to max_missed + 1 looks ahead at the trend's predictions (each from the match of
+// the look before when it is better than noise's), as long as the interval stays resolvable and
+// inside [.., limit_s). The longest run of looks that noise alone explains with probability below
+// kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, the
+// others as unheard impacts (missed_after). It stops where no run is significant: the noise won
+// or the ball stopped. Returns whether the sequence grew.
 bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double limit_s,
                 const TrackOptions& to, Sequence* q) {
   bool extended = false;
-  while (q->impacts.size() >= 3) {
-    const double r =
-        std::clamp(RecentRatio(q->impacts, q->impacts.size()), to.min_ratio, to.max_ratio);
-    double t = q->impacts.back().time_s;
-    double d = t - q->impacts[q->impacts.size() - 2].time_s;
-    const double spread = RatioSpread(*q, q->impacts.size());
+  if (q->impacts.size() < 3) return false;
+  // The last member and its single flight (after unheard impacts: the last of them).
+  double t_last = q->impacts.back().time_s;
+  double d_last = LastFlight(*q, std::exp(TrendAt(*q, q->impacts.size()).log_r));
+  for (;;) {
+    const RatioTrend trend = TrendAt(*q, q->impacts.size());
     std::vector<Look> looks;
+    std::vector<double> at, flight;  // each look's time (match or prediction) and flight
+    double t = t_last, d = d_last;
     for (int j = 0; j <= to.max_missed; ++j) {
+      const double r =
+          std::clamp(std::exp(trend.log_r + trend.slope * j), to.min_ratio, to.max_ratio);
       const double dn = d * r;
       if (dn < to.min_interval_s || t + dn > limit_s) break;
       looks.push_back(LookAt(onsets, x, t + dn, dn,
-                             spread * std::sqrt(1.0 + static_cast<double>(looks.size()))));
+                             trend.spread * std::sqrt(1.0 + static_cast<double>(looks.size()))));
       const Look& l = looks.back();
       const double next = l.any && l.p <= kGuidedMemberP ? l.match.time_s : t + dn;
       d = next - t;
       t = next;
+      at.push_back(t);
+      flight.push_back(d);
     }
     // The run whose Fisher combination is the least probable under noise alone.
     std::size_t best_n = 0;
@@ -198,16 +253,29 @@ bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double l
         best_p = p, best_n = n;
     }
     if (best_n == 0 || best_p > kGuidedFalseAlarm) break;
-    bool unheard = false;
+    bool unheard = false, grew = false;
+    double before = d_last;  // the single flight before the next look
     for (std::size_t n = 0; n < best_n; ++n) {
       if (!looks[n].any || looks[n].p > kGuidedMemberP) {
         unheard = true;
+        before = flight[n];
         continue;
       }
+      // The flight must not be longer than the one before beyond the timing noise (e <= 1,
+      // TrackOptions::max_ratio): a match past it is not the next bounce.
+      const Impact& f = looks[n].match;
+      if (flight[n] / before >
+          to.max_ratio + 3.0 * std::hypot(f.sigma_s, q->impacts.back().sigma_s) / before)
+        break;
       if (unheard) q->missed_after.push_back(static_cast<int>(q->impacts.size()) - 1);
-      q->impacts.push_back(looks[n].match);
+      q->impacts.push_back(f);
+      t_last = at[n];
+      d_last = flight[n];
+      before = flight[n];
       unheard = false;
+      grew = true;
     }
+    if (!grew) break;
     extended = true;
   }
   return extended;
@@ -226,7 +294,7 @@ void ExtendByTemplate(const OnsetResult& onsets, const std::vector<float>& x, do
                              : duration_s - 0.002;
     if (!ExtendTail(onsets, x, limit, to, &q)) continue;
     const double d = q.impacts.back().time_s - q.impacts[q.impacts.size() - 2].time_s;
-    const double next_dt = d * RecentRatio(q.impacts, q.impacts.size());
+    const double next_dt = d * std::exp(TrendAt(q, q.impacts.size()).log_r);
     const double next_t = q.impacts.back().time_s + next_dt;
     if (next_dt < 1.5 * to.min_interval_s)
       q.end_reason = "resolved_limit";

@@ -6,8 +6,6 @@
 #include <cmath>
 #include <limits>
 
-#include <cstdio>
-#include <cstdlib>
 #include "bouncecal/core/error.hpp"
 
 namespace bouncecal {
@@ -202,12 +200,6 @@ class Tracker {
       std::vector<State> here = std::move(pending_[Idx(k)]);
       StartAt(k, &here);
       Prune(&here);
-      static const char* dbg = std::getenv("BC_TRACE");
-      if (dbg && std::fabs(c_[Idx(k)].t - std::atof(dbg)) < 0.02)
-        for (const State& s : here)
-          std::fprintf(stderr, "k=%.4f i=%.4f score=%.3f len=%d trend=%.3f missed=%d irr=%d\n",
-                       c_[Idx(k)].t, c_[Idx(s.i)].t, s.score, s.len, s.trend, s.missed,
-                       s.irregular);
       for (State& s : here) {
         const int id = static_cast<int>(states_.size());
         states_.push_back(s);
@@ -216,27 +208,10 @@ class Tracker {
         if (s.len >= o_.min_sequence_impacts && s.n_r > 0 &&
             s.sum_log_r <= s.n_r * std::log(o_.max_mean_ratio))
           ended_.Add(c_[Idx(k)].t, s.d, s.score - EndPenalty(s), id);
-        if (std::getenv("BC_ENDS") && s.len >= 6)
-          std::fprintf(stderr, "end k=%.4f len=%d score=%.2f\n", c_[Idx(k)].t, s.len, s.score);
         Propose(id);
       }
     }
     std::vector<int> last;
-    if (const char* dbg = std::getenv("BC_BEST")) {
-      int best = -1;
-      for (int q = 0; q < static_cast<int>(states_.size()); ++q)
-        if (std::fabs(c_[Idx(states_[Idx(q)].k)].t - std::atof(dbg)) < 1e-3 &&
-            (best < 0 || states_[Idx(q)].len > states_[Idx(best)].len ||
-             (states_[Idx(q)].len == states_[Idx(best)].len &&
-              states_[Idx(q)].score > states_[Idx(best)].score)))
-          best = q;
-      for (int q = best; q >= 0; q = states_[Idx(q)].back)
-        std::fprintf(stderr, "  %.4f <- %.4f score %.2f trend %.3f rho %.1f v %.2f\n",
-                     c_[Idx(states_[Idx(q)].k)].t, c_[Idx(states_[Idx(q)].i)].t,
-                     states_[Idx(q)].score, states_[Idx(q)].trend,
-                     std::exp(c_[Idx(states_[Idx(q)].k)].log_rho),
-                     c_[Idx(states_[Idx(q)].k)].value);
-    }
     for (int s = ended_.Overall().second; s >= 0;) {
       last.push_back(s);
       int first = s;
@@ -244,17 +219,6 @@ class Tracker {
       s = states_[Idx(first)].prefix;
     }
     std::reverse(last.begin(), last.end());
-    if (std::getenv("BC_CHAINS"))
-      for (int e : last) {
-        std::fprintf(stderr, "chain end score %.3f:", states_[Idx(e)].score);
-        std::vector<int> ch;
-        for (int q = e; q >= 0; q = states_[Idx(q)].back) ch.push_back(q);
-        std::fprintf(stderr, " %.4f", c_[Idx(states_[Idx(ch.back())].i)].t);
-        for (auto it = ch.rbegin(); it != ch.rend(); ++it)
-          std::fprintf(stderr, " %.4f(%.2f)", c_[Idx(states_[Idx(*it)].k)].t,
-                       states_[Idx(*it)].score);
-        std::fprintf(stderr, "\n");
-      }
     return last;
   }
 

@@ -42,6 +42,9 @@ struct SignalAcrossBlocks {
   bool sound = false;   // a block was not silent
   double peak = 0.0;    // max |x| over the blocks
   std::string failure;  // the last block's reason for finding no sequence
+  // The last member of the last sequence merged (file seconds): a later block's sequences start
+  // after it (blocks overlap, blocks.cpp).
+  double merged_until_s = -1e300;
 };
 
 // The best-scoring signal's detection (a later one replaces an earlier one only when clearly

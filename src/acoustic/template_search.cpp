@@ -456,8 +456,7 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
 }
 
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out, double edge_penalty,
-                    double* ncc_spread) {
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty) {
   const std::vector<double>& h = r.template_wave;
   const std::vector<float>& w = r.whitened;
   if (h.empty() || !(r.rate_hz > 0.0) || w.size() != x.size()) return false;
@@ -485,10 +484,8 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   double best_c = -2.0, best_rank = -1e300;
   const long l_centre = start_of(t_center_s);
   const double inv_half = half_window_s > 0.0 ? 1.0 / (half_window_s * r.rate_hz) : 0.0;
-  std::vector<double> all;  // the window's NCCs, for *ncc_spread
   for (long l = lo; l <= hi; ++l) {
     const double c = ncc(l);
-    if (ncc_spread) all.push_back(c);
     const double u = static_cast<double>(l - l_centre) * inv_half;
     const double rank = c - edge_penalty * u * u;
     if (rank > best_rank) {
@@ -496,16 +493,6 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
       best_c = c;
       best_l = l;
     }
-  }
-  if (ncc_spread) {
-    // 1.4826 MAD: the spread of the NCC where there is no impact (a peak's main lobe is a few
-    // of the window's positions).
-    const auto mid = all.begin() + static_cast<std::ptrdiff_t>(all.size() / 2);
-    std::nth_element(all.begin(), mid, all.end());
-    const double med = *mid;
-    for (double& v : all) v = std::fabs(v - med);
-    std::nth_element(all.begin(), mid, all.end());
-    *ncc_spread = 1.4826 * *mid;
   }
   if (best_l < 1 || best_c < min_ncc) return false;
   const double cm = ncc(best_l - 1), cp = ncc(best_l + 1);
@@ -535,6 +522,37 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   imp.snr_db = 10.0 * std::log10((p_post + 1e-30) / (std::max(p_pre, 1e-6 * floor_var) + 1e-30));
   *out = imp;
   return true;
+}
+
+double NccNoiseSpread(const OnsetResult& r, double t0_s, double t1_s, int max_positions) {
+  const std::vector<double>& h = r.template_wave;
+  const std::vector<float>& w = r.whitened;
+  const long n = static_cast<long>(w.size()), tl = static_cast<long>(h.size());
+  if (h.empty() || !(r.rate_hz > 0.0) || max_positions < 3) return 0.0;
+  double hh = 0.0;
+  for (double v : h) hh += v * v;
+  auto start_of = [&](double t) {
+    return r.template_start + std::lround((t - r.template_onset_s) * r.rate_hz);
+  };
+  const long lo = std::max(0L, start_of(t0_s)), hi = std::min(n - tl, start_of(t1_s));
+  if (hi - lo < 3 || !(hh > 0.0)) return 0.0;
+  const long step = std::max(1L, (hi - lo) / max_positions);
+  std::vector<double> c;
+  for (long l = lo; l < hi; l += step) {
+    double xy = 0.0, yy = 0.0;
+    for (long j = 0; j < tl; ++j) {
+      const double y = w[static_cast<std::size_t>(l + j)];
+      xy += h[static_cast<std::size_t>(j)] * y;
+      yy += y * y;
+    }
+    c.push_back(yy > 0.0 ? xy / std::sqrt(hh * yy) : 0.0);
+  }
+  const auto mid = c.begin() + static_cast<std::ptrdiff_t>(c.size() / 2);
+  std::nth_element(c.begin(), mid, c.end());
+  const double med = *mid;
+  for (double& v : c) v = std::fabs(v - med);
+  std::nth_element(c.begin(), mid, c.end());
+  return 1.4826 * *mid;
 }
 
 }  // namespace bouncecal

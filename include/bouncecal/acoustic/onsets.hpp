@@ -84,12 +84,13 @@ struct OnsetResult {
 // NCC - edge_penalty * ((t - t_center_s) / half_window_s)^2 (the prediction is best at the
 // centre). Returns true and fills *out (time from the NCC peak, parabolic interpolation; sigma
 // from the NCC; score = NCC; amplitude from `samples`) when the chosen NCC reaches min_ncc.
-// ncc_spread (when given): 1.4826 x the median absolute deviation of the NCC over the window's
-// positions, the spread of the NCC where the template meets no impact (set whether or not a
-// match is returned, when the window lies inside the signal).
 bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out, double edge_penalty = 0.0,
-                    double* ncc_spread = nullptr);
+                    double half_window_s, double min_ncc, Impact* out, double edge_penalty = 0.0);
+
+// The spread of the template's NCC with the whitened signal where it meets no impact: 1.4826 x
+// the median absolute deviation over (at most max_positions evenly spaced) template positions of
+// [t0_s, t1_s). 0 when the stretch is too short or outside the signal.
+double NccNoiseSpread(const OnsetResult& result, double t0_s, double t1_s, int max_positions);
 
 // Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
 // e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin

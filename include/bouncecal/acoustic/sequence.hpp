@@ -95,7 +95,7 @@ struct TrackOptions {
   // A drop releases the ball from at least this height (m): two orders of magnitude below the
   // seed papers' 5 cm - 2.5 m; shorter first flights are a plate's buzz or clusters of echoes.
   double min_drop_height_m = 1e-3;
-  int min_sequence_impacts = 3;      // fewer impacts: not a bounce sequence
+  int min_sequence_impacts = 3;  // fewer impacts: not a bounce sequence
   // Bounded fan-in (cost, not physics: doubling each changes no sequence of the scoreboard's
   // corpus, tools/scoreboard).
   int beam = 16;               // states kept per candidate (new pairs and longer, each)

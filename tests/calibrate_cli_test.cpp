@@ -17,6 +17,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "test_util.hpp"
+
 namespace {
 namespace fs = std::filesystem;
 
@@ -26,9 +28,9 @@ struct CliRun {
 };
 
 CliRun Exec(const std::string& args) {
-  std::random_device rd;
-  const fs::path err_path = fs::temp_directory_path() / ("bc_cli_err_" + std::to_string(rd()));
-  const std::string cmd = std::string(BOUNCECAL_BINARY) + " " + args + " 2>" + err_path.string();
+  const bouncecal::testing_util::ScratchDir scratch("bc_cli_err");
+  const std::string err_path = scratch / "stderr";
+  const std::string cmd = std::string(BOUNCECAL_BINARY) + " " + args + " 2>" + err_path;
   CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -41,7 +43,6 @@ CliRun Exec(const std::string& args) {
   std::stringstream ss;
   ss << e.rdbuf();
   r.err = ss.str();
-  fs::remove(err_path);
   return r;
 }
 
@@ -49,19 +50,7 @@ const std::string kData = std::string(BOUNCECAL_SOURCE_DIR) + "/data/";
 const std::string kRecording = kData + "default_steel_copper.flac";
 const std::string kScene = kData + "default_steel_copper.toml";
 
-class TempDir {
- public:
-  TempDir() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("bc_cli_" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string operator/(const std::string& n) const { return (path_ / n).string(); }
-
- private:
-  fs::path path_;
-};
+using TempDir = bouncecal::testing_util::ScratchDir;
 
 int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 

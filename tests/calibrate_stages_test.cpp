@@ -285,7 +285,7 @@ TEST(CalibrateStages, DiagnosisOrdersOutcomesAndRaisesTheWarnings) {
   EXPECT_EQ(Diagnose(fp, s, u, rep).outcome, FitOutcome::kFailed);
 }
 
-TEST(CalibrateStages, TrendTestIsQuietForTheRightLawAndLoudForAWrongOne) {
+TEST(CalibrateStages, MisfitTestIsQuietForTheRightLawAndLoudForAWrongOne) {
   const Scene truth = ViscoScene();
   const auto t = Data(truth, 0.002, 11);
   std::atomic<long> sims{0};
@@ -296,15 +296,15 @@ TEST(CalibrateStages, TrendTestIsQuietForTheRightLawAndLoudForAWrongOne) {
     FitProblem fp = SetUpProblem({{"x", t.sequence}}, start, {});
     const auto starts = MakeStarts(&fp, &sims);
     const Solution s = SolveRestitution(fp, starts[0], {}, fp.scatter_start, true, &sims);
-    int dof = 0;
-    double size = 0.0, scale = 0.0;
-    const double chi2 = TrendChi2(fp, s, &dof, &size, &scale);
-    EXPECT_EQ(dof, 2);
+    const LawMisfit m = TestLawMisfit(fp, s);
+    EXPECT_EQ(m.dof, 2);
     if (std::string(law) == "hertz-viscoelastic") {
-      EXPECT_LT(chi2, 13.8) << law;  // p > 0.001
+      EXPECT_LT(m.chi2, 13.8) << law;  // p > 0.001
+      EXPECT_FALSE(m.significant) << law;
     } else {
-      EXPECT_GT(chi2, 100.0) << law;
-      EXPECT_GT(size, scale) << law;
+      EXPECT_GT(m.chi2, 30.0) << law;
+      EXPECT_TRUE(m.matters) << law << ": misfit " << m.rms_e << " tolerance " << m.tolerance_e;
+      EXPECT_GT(m.rms_e, m.tolerance_e) << law;
     }
   }
 }

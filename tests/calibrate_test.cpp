@@ -263,7 +263,9 @@ TEST(CalibrateOutcome, PoorFitWhenTheLawMissesTheTrend) {
   const auto t = oracle_truth::Make(truth, o);
   const Calibration c = Calibrate({{"x", t.sequence}}, SteelScene("walton-braun"), {});
   EXPECT_EQ(c.outcome, FitOutcome::kPoorFit) << c.FullReport();
-  EXPECT_NE(c.reason.find("trend"), std::string::npos) << c.reason;
+  EXPECT_NE(c.reason.find("wrong shape"), std::string::npos) << c.reason;
+  EXPECT_GT(c.misfit_e, c.misfit_tolerance_e);
+  EXPECT_LT(c.misfit_p_value, 1e-3);
   EXPECT_EQ(FitOutcomeExitCode(c.outcome), ErrorCode::kFitPoorFit);
   // The same data with the right law converge.
   const Calibration r = Calibrate({{"x", t.sequence}}, Start(truth), {});

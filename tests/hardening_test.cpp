@@ -350,12 +350,12 @@ TEST(ThirdPartyLogging, FailedFitPrintsOnlyOurLines) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Long recordings (issue 14 item 1): every drop is found; tracking caps are reported, not silent
+// Long recordings (issue 14 item 1, issue 29): every drop is found; tracking has no caps
 
 // 17 copies of the bundled 7-second drop back to back (119 s, 867 impacts). Before: one
 // 300-candidate tracker kept the strongest onsets and the drops it could chain from them, with
-// a detection_capped warning; the caps now grow with the length (10 onsets and a drop per 4 s
-// past 30 s), so every drop is a sequence, with no warning.
+// a detection_capped warning; the tracker now finds all drops together with no cap, so every drop
+// is a sequence, with no warning.
 TEST(LongRecording, EveryCopyOfTheBundledDropIsASequence) {
   ScratchDir dir("bc_harden");
   const bouncecal::Audio one = bouncecal::ReadAudio(kRecording);

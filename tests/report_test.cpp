@@ -349,6 +349,10 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
   // The fitted curve's green (#2ca02c) is on the restitution chart.
   // Measured 499 px on the bundled recording (66 impacts); 0 without the curve.
   EXPECT_GT(CountPixels(r.shot, canvases.at("restitution"), 0x2c, 0xa0, 0x2c).near_color, 250);
+  // The fit's next step is on the page (a converged fit: its export).
+  const std::size_t hint = r.dom.find("id=\"fit-hint\"");
+  ASSERT_NE(hint, std::string::npos);
+  EXPECT_NE(r.dom.find("bouncecal export", hint), std::string::npos);
 
   const std::string text = Slurp(html);
   const std::regex url(R"((https?|ftp|wss?):|//cdn|(src|href)\s*=\s*["']?//)", std::regex::icase);
@@ -385,8 +389,9 @@ TEST(ReportBrowser, RejectedCandidatesAndWarningsAreMarkedWhereTheyBelong) {
           static_cast<float>(i.amplitude * std::exp(-k / 6.0) * (k % 2 ? -1 : 1));
     }
   }
-  d.warnings = {{"missed_impact", "an impact seems missing after impact 2", 2},
-                {"clipped", "channel 0 is clipped", -1}};
+  d.warnings = {
+      {"missed_impact", "an impact seems missing after impact 2", 2, "listen to the impacts kept"},
+      {"clipped", "channel 0 is clipped", -1, "record at a lower gain"}};
   rec.detection = d;
   rec.candidates = d.candidates;
   AnalysisOptions no_drop;
@@ -398,6 +403,7 @@ TEST(ReportBrowser, RejectedCandidatesAndWarningsAreMarkedWhereTheyBelong) {
   ASSERT_EQ(data["recordings"][0]["rejected"].size(), 2u);
   EXPECT_EQ(data["recordings"][0]["warnings"][0]["time_s"].get<double>(), 1.2);
   EXPECT_TRUE(data["recordings"][0]["warnings"][1]["time_s"].is_null());
+  EXPECT_EQ(data["recordings"][0]["warnings"][1]["hint"], "record at a lower gain");
   const std::string html = dir / "hand.html";
   WriteHtmlReport(html, data, {.force = false, .inputs = {}});
 
@@ -410,6 +416,7 @@ TEST(ReportBrowser, RejectedCandidatesAndWarningsAreMarkedWhereTheyBelong) {
   EXPECT_EQ(wave.attr.at("data-warning-lines"), "1");  // the clipped warning has no place
   EXPECT_NE(r.dom.find("<code>missed_impact</code>"), std::string::npos);
   EXPECT_NE(r.dom.find("<code>clipped</code>"), std::string::npos);
+  EXPECT_NE(r.dom.find("Next: record at a lower gain"), std::string::npos);  // its next step
   ASSERT_GT(r.shot.width, 0);
   // Orange crosses (#ff7f0e) and the purple warning line (#9467bd) are on the screenshot.
   EXPECT_GT(CountPixels(r.shot, wave, 0xff, 0x7f, 0x0e).near_color, 2 * 10);

@@ -15,6 +15,7 @@
 #include <regex>
 #include <sstream>
 
+#include "audio_bytes.hpp"
 #include "avx2_clones.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
@@ -212,10 +213,9 @@ namespace {
 
 // MPEG audio by its first bytes: an ID3v2 tag ("ID3"), or an MPEG audio frame sync (11 set
 // bits, then a layer other than the reserved 00).
-bool LooksLikeMpegAudio(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  unsigned char b[3] = {0, 0, 0};
-  if (!f.read(reinterpret_cast<char*>(b), 3)) return false;
+bool LooksLikeMpegAudio(AudioBytes* bytes) {
+  const std::vector<unsigned char> b = bytes->Head(3);
+  if (b.size() < 3) return false;
   if (b[0] == 'I' && b[1] == 'D' && b[2] == '3') return true;
   return b[0] == 0xFF && (b[1] & 0xE0) == 0xE0 && (b[1] & 0x06) != 0;
 }
@@ -323,23 +323,33 @@ struct AudioReader::Tracker {
   }
 };
 
-// What a reader reads from: a libsndfile handle, or audio FFmpeg decoded on opening.
+// What a reader reads from: libsndfile on the recording's bytes, or audio FFmpeg decoded on
+// opening. `data_start` and `frame_bytes` (PCM only, else 0) let the end of a stream of unknown
+// length tell a last frame cut short.
 struct AudioReader::Source {
+  std::unique_ptr<AudioBytes> bytes;
   SndfilePtr file;
   Audio decoded;
   std::vector<float> interleaved;
+  std::int64_t data_start = 0;
+  std::int64_t frame_bytes = 0;
+  bool ended = false;  // an unknown length's end was met
 };
 
 namespace {
 
 // The path checks every reader makes first (exit 3 for a missing or unreadable input, 4 for
-// an empty file).
+// an empty file). "-" is standard input; a FIFO or device is read as a stream too.
 void CheckInputPath(const std::string& path) {
   std::error_code ec;
   const fs::path p(path);
   if (path.empty()) throw Error(ErrorCode::kInputMissing, "<empty path>: no file given");
+  if (path == "-") return;
   if (!fs::exists(p, ec)) throw Error(ErrorCode::kInputMissing, path + ": no such file");
   if (fs::is_directory(p, ec)) throw Error(ErrorCode::kInputMissing, path + ": is a directory");
+  // A FIFO or a device: not opened here (opening and closing a FIFO's read end lets its writer
+  // start into a pipe without a reader), and its size says nothing.
+  if (!fs::is_regular_file(p, ec)) return;
   {
     std::ifstream probe(p, std::ios::binary);
     if (!probe) {
@@ -351,15 +361,56 @@ void CheckInputPath(const std::string& path) {
   if (!ec && size == 0) throw Error(ErrorCode::kNotAudio, path + ": empty file (0 bytes)");
 }
 
-// The header of an opened libsndfile file: what it says, and its refusals.
-AudioInfo SndfileInfo(const std::string& path, SNDFILE* f, const SF_INFO& sfinfo) {
+// A frame count past this is a header's way of saying "until the end": 2^53 frames are 740
+// years at the highest rate read (libsndfile reports SF_COUNT_MAX for a FLAC whose STREAMINFO
+// total is 0, and about SF_COUNT_MAX / frame size for a headerless length on a stream).
+constexpr std::int64_t kMaxDeclaredFrames = std::int64_t{1} << 53;
+
+// Bytes per frame of an uncompressed subtype (0 for a compressed one).
+std::int64_t PcmFrameBytes(const SF_INFO& sfinfo) {
+  std::int64_t width = 0;
+  switch (sfinfo.format & SF_FORMAT_SUBMASK) {
+    case SF_FORMAT_PCM_S8:
+    case SF_FORMAT_PCM_U8:
+    case SF_FORMAT_ULAW:
+    case SF_FORMAT_ALAW:
+      width = 1;
+      break;
+    case SF_FORMAT_PCM_16:
+      width = 2;
+      break;
+    case SF_FORMAT_PCM_24:
+      width = 3;
+      break;
+    case SF_FORMAT_PCM_32:
+    case SF_FORMAT_FLOAT:
+      width = 4;
+      break;
+    case SF_FORMAT_DOUBLE:
+      width = 8;
+      break;
+    default:
+      return 0;
+  }
+  const int major = sfinfo.format & SF_FORMAT_TYPEMASK;
+  const bool framed = major == SF_FORMAT_WAV || major == SF_FORMAT_WAVEX ||
+                      major == SF_FORMAT_AIFF || major == SF_FORMAT_AU || major == SF_FORMAT_W64 ||
+                      major == SF_FORMAT_RF64 || major == SF_FORMAT_CAF || major == SF_FORMAT_RAW;
+  return framed ? width * sfinfo.channels : 0;
+}
+
+// The header of an opened libsndfile file: what it says, and its refusals. `frames` is
+// kUnknownFrames when the header gives no length (`placeholder`: a WAV data size of 0 or
+// 0xFFFFFFFF; or a count no recording reaches).
+AudioInfo SndfileInfo(const std::string& path, SNDFILE* f, const SF_INFO& sfinfo,
+                      bool placeholder) {
   AudioInfo info;
   info.path = path;
   info.sample_rate_hz = sfinfo.samplerate;
   info.channels = sfinfo.channels;
   info.format = MajorFormatName(sfinfo.format);
   info.subtype = SubtypeName(sfinfo.format);
-  info.frames = sfinfo.frames;
+  info.frames = placeholder || sfinfo.frames >= kMaxDeclaredFrames ? kUnknownFrames : sfinfo.frames;
   std::string detail;
   if (LogShowsTruncatedData(f, &detail)) {
     throw Error(ErrorCode::kNotAudio, path + ": truncated (" + detail + ")");
@@ -374,28 +425,48 @@ AudioInfo SndfileInfo(const std::string& path, SNDFILE* f, const SF_INFO& sfinfo
                                           std::to_string(kMinSampleRateHz) + " to " +
                                           std::to_string(kMaxSampleRateHz) + " Hz)");
   }
-  if (sfinfo.frames <= 0) {
+  if (info.frames == 0 || sfinfo.frames <= 0) {
     throw Error(ErrorCode::kNotAudio, path + ": no audio frames (zero-length audio data)");
   }
   return info;
+}
+
+// FFmpeg's decoding of what libsndfile cannot read; a stream is spooled to a file for it, and
+// its messages name the input, not the spool.
+Audio DecodeWithFfmpeg(const std::string& path, AudioBytes* bytes) {
+  const std::string from = bytes->Spool();
+  if (from == path) return ReadAudioFfmpeg(path);
+  try {
+    Audio a = ReadAudioFfmpeg(from);
+    a.info.path = path;
+    return a;
+  } catch (const Error& e) {
+    std::string why = e.what();
+    for (std::size_t at = why.find(from); at != std::string::npos; at = why.find(from, at))
+      why.replace(at, from.size(), path);
+    throw Error(e.code(), why);
+  }
 }
 
 }  // namespace
 
 AudioReader::AudioReader(const std::string& path) : source_(std::make_unique<Source>()) {
   CheckInputPath(path);
-  const fs::path p(path);
+  source_->bytes = std::make_unique<AudioBytes>(path);
+  AudioBytes* bytes = source_->bytes.get();
+  if (bytes->stream() && bytes->Head(1).empty())
+    throw Error(ErrorCode::kNotAudio, path + ": empty input (0 bytes)");
   bool decoded = false;
   SF_INFO sfinfo{};
-  if (LooksLikeMpegAudio(p) && FfmpegAvailable()) {
-    source_->decoded = ReadAudioFfmpeg(path);
+  if (LooksLikeMpegAudio(bytes) && FfmpegAvailable()) {
+    source_->decoded = DecodeWithFfmpeg(path, bytes);
     decoded = true;
   } else {
-    source_->file.reset(sf_open(path.c_str(), SFM_READ, &sfinfo));
+    source_->file.reset(sf_open_virtual(AudioBytes::Io(), SFM_READ, &sfinfo, bytes));
     if (!source_->file) {
       const std::string sf_why = sf_strerror(nullptr);
       try {
-        source_->decoded = ReadAudioFfmpeg(path);
+        source_->decoded = DecodeWithFfmpeg(path, bytes);
       } catch (const Error& e) {
         std::string ff_why = e.what();
         if (ff_why.rfind(path + ": ", 0) == 0) ff_why = ff_why.substr(path.size() + 2);
@@ -414,7 +485,10 @@ AudioReader::AudioReader(const std::string& path) : source_(std::make_unique<Sou
                        : static_cast<std::int64_t>(source_->decoded.channels.front().size());
     memory_ = &source_->decoded;
   } else {
-    info_ = SndfileInfo(path, source_->file.get(), sfinfo);
+    bytes->EndHeader();
+    source_->data_start = bytes->position();
+    source_->frame_bytes = PcmFrameBytes(sfinfo);
+    info_ = SndfileInfo(path, source_->file.get(), sfinfo, bytes->length_placeholder());
   }
   trackers_.resize(static_cast<std::size_t>(std::max(info_.channels, 0)));
 }
@@ -430,7 +504,13 @@ AudioReader::~AudioReader() = default;
 std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<float>>* out) {
   const std::size_t nch = static_cast<std::size_t>(info_.channels);
   out->resize(nch);
-  const std::int64_t want = std::max<std::int64_t>(0, std::min(frames, info_.frames - position_));
+  // An unknown length is read in pieces of at most kMaxStreamReadFrames until the data ends.
+  constexpr std::int64_t kMaxStreamReadFrames = std::int64_t{1} << 20;
+  const bool unknown = info_.frames == kUnknownFrames;
+  const std::int64_t want =
+      unknown
+          ? (source_->ended ? 0 : std::max<std::int64_t>(0, std::min(frames, kMaxStreamReadFrames)))
+          : std::max<std::int64_t>(0, std::min(frames, info_.frames - position_));
   if (want == 0) return 0;
   std::vector<std::size_t> first(nch);
   for (std::size_t c = 0; c < nch; ++c) first[c] = (*out)[c].size();
@@ -460,7 +540,9 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
         for (std::int64_t i = 0; i < got; ++i) dst[i] = buf[static_cast<std::size_t>(i) * nch + c];
       }
     }
-    if (got < want) {
+    if (got < want && unknown) {
+      EndOfUnknownLength(position_ + got);
+    } else if (got < want) {
       const std::string why = sf_strerror(f);
       throw Error(ErrorCode::kNotAudio,
                   info_.path + ": truncated (header says " + std::to_string(info_.frames) +
@@ -493,6 +575,46 @@ std::int64_t AudioReader::Read(std::int64_t frames, std::vector<std::vector<floa
   return got;
 }
 
+void AudioReader::EndOfUnknownLength(std::int64_t frames) {
+  constexpr const char* kStreamHint =
+      "check that the writer finished (its end is the recording's end); the frames before the "
+      "cut are used as they are";
+  source_->ended = true;
+  info_.frames = frames;
+  const std::string& path = info_.path;
+  if (frames == 0)
+    throw Error(ErrorCode::kNotAudio, path + ": no audio frames (the stream ends before any)");
+  SNDFILE* f = source_->file.get();
+  const AudioBytes& bytes = *source_->bytes;
+  char seconds[32];
+  std::snprintf(seconds, sizeof seconds, "%.3f", info_.duration_s());
+  const std::string read_to =
+      "read up to its last whole frame, " + std::to_string(frames) + " frames (" + seconds + " s)";
+  if (!bytes.read_error().empty()) {
+    warnings_.push_back(
+        {"truncated_stream",
+         path + ": reading the input failed (" + bytes.read_error() + "); " + read_to, -1,
+         kStreamHint});
+  } else if (sf_error(f) != SF_ERR_NO_ERROR) {
+    warnings_.push_back({"truncated_stream",
+                         path + ": the " + info_.format + " stream ends inside a frame (" +
+                             sf_strerror(f) + "); " + read_to,
+                         -1, kStreamHint});
+  } else if (source_->frame_bytes > 0 && bytes.ended()) {
+    const std::int64_t rest = bytes.size() - source_->data_start - frames * source_->frame_bytes;
+    if (rest > 0 && rest < source_->frame_bytes)
+      warnings_.push_back({"truncated_stream",
+                           path + ": the stream ends inside a frame (" + std::to_string(rest) +
+                               " of its " + std::to_string(source_->frame_bytes) + " bytes); " +
+                               read_to,
+                           -1, kStreamHint});
+  }
+}
+
+const std::vector<Warning>& AudioReader::warnings() const {
+  return trackers_.empty() && memory_ != nullptr ? memory_->warnings : warnings_;
+}
+
 std::int64_t AudioReader::Skip(std::int64_t frames) {
   std::int64_t skipped = 0;
   constexpr std::int64_t kBlock = 65536;
@@ -519,12 +641,15 @@ Audio ReadAudio(const std::string& path) {
   a.info = reader.info();
   a.channels.assign(static_cast<std::size_t>(a.info.channels), std::vector<float>());
   // (A corrupt header may claim absurd lengths: reserve at most 16 Mi frames up front.)
+  // (An unknown length grows as read.)
   for (auto& c : a.channels)
-    c.reserve(std::min<std::size_t>(static_cast<std::size_t>(a.info.frames), std::size_t{1} << 24));
+    c.reserve(std::min<std::size_t>(
+        static_cast<std::size_t>(std::max<std::int64_t>(a.info.frames, 0)), std::size_t{1} << 24));
   while (reader.Read(std::int64_t{1} << 20, &a.channels) > 0) {
   }
-  a.info.frames = reader.position();
+  a.info = reader.info();
   a.clipping = reader.clipping();
+  a.warnings = reader.warnings();
   return a;
 }
 

@@ -96,7 +96,7 @@ void MergeBlock(SignalDetection d, double own_lo_s, double own_hi_s, double data
                     "analysis block ends (DetectOptions::max_block_s): its later impacts may be "
                     "missing",
                     t0, data_end_s);
-      d.warnings.push_back({"block_split", msg, -1});
+      d.warnings.push_back({"block_split", msg, -1, "--start/--end around this drop"});
     }
     into->merged_until_s = q.impacts.back().time_s;
     m.sequences.push_back(std::move(q));

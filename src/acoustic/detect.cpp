@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "blocks.hpp"
 #include "bouncecal/core/error.hpp"
@@ -32,20 +33,22 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
                           std::to_string(k) +
                           " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
                           " s); its interval is about two expected ones",
-                      k});
+                      k,
+                      "listen to the impacts kept (detect --click-track FILE.wav); a quiet bounce "
+                      "may need a lower --min-snr-db"});
     for (int k : q.irregular_after) {
       const auto& im = q.impacts;
       const std::size_t j = static_cast<std::size_t>(k);
       const double d = im[j + 1].time_s - im[j].time_s;
       const double d0 = j > 0 ? im[j].time_s - im[j - 1].time_s : 0.0;
-      out->push_back({"irregular_interval",
-                      "sequence " + std::to_string(s) + ": the interval after impact " +
-                          std::to_string(k) + " (t = " + Fmt("%.4f", im[j].time_s) +
-                          " s: " + Fmt("%.4f", d) + " s" +
-                          (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
-                          ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
-                          "sequence continues through it",
-                      k});
+      out->push_back(
+          {"irregular_interval",
+           "sequence " + std::to_string(s) + ": the interval after impact " + std::to_string(k) +
+               " (t = " + Fmt("%.4f", im[j].time_s) + " s: " + Fmt("%.4f", d) + " s" +
+               (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
+               ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
+               "sequence continues through it",
+           k, "nothing to do if the ball hit an uneven spot; drop it on a flat, hard floor"});
     }
   }
 }
@@ -56,19 +59,33 @@ struct Window {
   std::string text;  // "[start, end) s" when not the whole recording, for messages; else empty
 };
 
-Window AnalysisWindow(const AudioInfo& info, const DetectOptions& options) {
-  const double rate = info.sample_rate_hz;
-  const std::int64_t frames = info.frames;
-  const double duration_s = static_cast<double>(frames) / rate;
+// "[start, end) s".
+std::string WindowText(const DetectOptions& options) {
   // Appended piece by piece: GCC 12's -Wrestrict misreads "[" + std::string inlined here.
   std::string window = "[";
   window += Fmt("%g", options.start_s) + ", ";
   window += options.end_s ? Fmt("%g", *options.end_s) : std::string("end");
   window += ") s";
+  return window;
+}
+
+// Refuses a window that starts after the recording ends (its length known).
+void CheckWindowStart(const AudioInfo& info, const DetectOptions& options) {
+  const double duration_s = info.duration_s();
   if (options.start_s >= duration_s)
-    throw Error(ErrorCode::kNoBounces, info.path + ": the window " + window +
+    throw Error(ErrorCode::kNoBounces, info.path + ": the window " + WindowText(options) +
                                            " starts after the recording ends (" +
                                            Fmt("%.3f", duration_s) + " s)");
+}
+
+// A recording whose header gives no length (kUnknownFrames) is read to its end: the window
+// then ends there, and its start is checked once the length is known.
+Window AnalysisWindow(const AudioInfo& info, const DetectOptions& options) {
+  const double rate = info.sample_rate_hz;
+  const bool known = info.frames != kUnknownFrames;
+  const std::int64_t frames = known ? info.frames : std::numeric_limits<std::int64_t>::max();
+  if (known) CheckWindowStart(info, options);
+  const std::string window = WindowText(options);
   Window w;
   w.i0 = static_cast<std::int64_t>(std::ceil(options.start_s * rate));
   w.i1 = options.end_s
@@ -79,7 +96,8 @@ Window AnalysisWindow(const AudioInfo& info, const DetectOptions& options) {
   return w;
 }
 
-// The chosen signal's impacts and sequences in res, and the warnings of the whole detection.
+// The chosen signal's impacts and sequences in res, and the warnings of the whole detection
+// (after the reader's, already in res).
 void Finish(SignalDetection chosen, const DetectOptions& options, DetectionResult* out) {
   DetectionResult& res = *out;
   const AudioInfo& info = res.audio;
@@ -99,7 +117,7 @@ void Finish(SignalDetection chosen, const DetectOptions& options, DetectionResul
                                   std::to_string(c.clipped_samples) +
                                   " samples at its extreme value); onsets are still usable, "
                                   "amplitudes are not",
-                              -1});
+                              -1, "record the next drop at a lower input gain"});
   if (info.lossy) {
     const double delay_ms = 1e3 * static_cast<double>(info.codec_delay_samples) / rate;
     res.warnings.push_back(
@@ -114,7 +132,7 @@ void Finish(SignalDetection chosen, const DetectOptions& options, DetectionResul
                   : std::string("no codec delay stated")) +
              "; lossy coding smears onsets (pre-echo), so a constant offset of up to a few ms "
              "is possible (intervals are not)",
-         -1});
+         -1, "record in WAV or FLAC (a phone's uncompressed or lossless setting) if you can"});
   }
   ChannelChoiceWarning(res, &res.warnings);
   res.warnings.insert(res.warnings.end(), chosen.warnings.begin(), chosen.warnings.end());
@@ -179,16 +197,19 @@ DetectionResult DetectImpacts(AudioReader& reader, const DetectOptions& options)
   if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, why);
   const AudioInfo& info = reader.info();
   DetectionResult res;
-  res.audio = info;
-  if (info.channels < 1 || info.frames <= 0)
+  const bool length_known = info.frames != kUnknownFrames;
+  if (info.channels < 1 || (length_known && info.frames <= 0))
     throw Error(ErrorCode::kNotAudio, info.path + ": no samples");
   const Window window = AnalysisWindow(info, options);
-  res.start_s = static_cast<double>(window.i0) / info.sample_rate_hz;
-  res.end_s = static_cast<double>(window.i1) / info.sample_rate_hz;
   const std::vector<int> choices = CandidateSignals(options.channel, info);
   std::vector<SignalAcrossBlocks> signals(choices.size());
   DetectBlocks(&reader, window.i0, window.i1, choices, options, &signals);
+  if (!length_known) CheckWindowStart(reader.info(), options);
+  res.audio = reader.info();  // the length, once read to the end
+  res.start_s = static_cast<double>(window.i0) / info.sample_rate_hz;
+  res.end_s = static_cast<double>(std::min(window.i1, res.audio.frames)) / info.sample_rate_hz;
   res.clipping = reader.clipping();
+  res.warnings = reader.warnings();
   Finish(ChooseSignal(choices, &signals, window.text, &res), options, &res);
   return res;
 }

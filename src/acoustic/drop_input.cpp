@@ -1,6 +1,7 @@
 // Recordings or impact-time files -> the chosen drops (drop_input.hpp).
 #include "bouncecal/acoustic/drop_input.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <iterator>
 #include <limits>
@@ -60,6 +61,9 @@ std::vector<std::pair<std::string, std::string>> PairInputs(
                                        " recordings: give one per recording, in the same order");
   }
   if (out.empty()) throw Error(ErrorCode::kUsage, "no recording given");
+  if (std::count(recordings.begin(), recordings.end(), std::string("-")) > 1)
+    throw Error(ErrorCode::kUsage,
+                "standard input (-) is given more than once: it can be read only once");
   return out;
 }
 
@@ -78,10 +82,12 @@ LoadedRecording LoadRecording(const std::string& recording, const Audio* audio,
     std::optional<AudioInfo> info;
     if (audio) {
       info = audio->info;
+      out.result.warnings = audio->warnings;
     } else if (!recording.empty()) {
       AudioReader reader(recording);  // every sample is checked, none is kept
       reader.Skip(std::numeric_limits<std::int64_t>::max());
       info = reader.info();
+      out.result.warnings = reader.warnings();
     }
     ImpactsFileOptions io;
     if (info) io.duration_s = info->duration_s();

@@ -162,7 +162,9 @@ std::vector<Warning> RemoveUntimedMembers(Sequence* s, const PlausibilityOptions
                        " s was removed: its timing sigma (" + Fmt("%.3g", sig) +
                        " s) is not below max_sigma_fraction = " + Fmt("%g", o.max_sigma_fraction) +
                        " of its shorter interval (" + Fmt("%.4f", shorter) + " s)",
-                   -1});
+                   -1,
+                   "listen to what was kept (detect --click-track FILE.wav); if a bounce is "
+                   "missing, record closer to the impact point or in a quieter room"});
   }
   DropDanglingTail(&drop, &out);
   if (!out.empty()) RemoveMembers(s, drop, "sigma_removed");
@@ -181,7 +183,9 @@ std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions&
                    label + ": the impact at t = " + Fmt("%.4f", i.time_s) + " s was removed: SNR " +
                        Fmt("%.1f", i.snr_db) +
                        " dB is below min_snr_db = " + Fmt("%g", o.min_snr_db) + " dB",
-                   -1});
+                   -1,
+                   "to keep quieter impacts lower --min-snr-db (check them with detect "
+                   "--click-track FILE.wav)"});
   }
   DropDanglingTail(&drop, &out);
   if (!out.empty()) RemoveMembers(s, drop, "low_snr_removed");
@@ -212,7 +216,9 @@ std::vector<Warning> RemoveQuietEarlierMembers(Sequence* s, const PlausibilityOp
                          " dB below the impacts after it, but an earlier impact is faster and "
                          "so not quieter (level_tolerance_db = " +
                          Fmt("%g", o.level_tolerance_db) + ")",
-                     -1});
+                     -1,
+                     "nothing to do if it was a tap or a handling noise; if it was a bounce, "
+                     "--start after the noise keeps it out of the search"});
     }
     if (std::find(drop.begin(), drop.end(), true) != drop.end()) {
       RemoveMembers(s, drop, "phantom_removed");
@@ -245,7 +251,7 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
         out.push_back({seqs[s].removed.back().code,
                        labels[s] + ": fewer than " + std::to_string(o.min_sequence_impacts) +
                            " impacts remain after the removals above: not a bounce sequence",
-                       -1});
+                       -1, "see the removals above; --start/--end around the drop"});
     } else if (!(ratio <= o.max_mean_ratio)) {
       keep[s] = false;
       out.push_back({"not_shrinking",
@@ -253,7 +259,8 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
                          " impacts whose intervals do not shrink on average (mean ratio " +
                          Fmt("%.4f", ratio) + " > max_mean_ratio = " + Fmt("%g", o.max_mean_ratio) +
                          "): a metronome or repeated clicks, not a bouncing ball",
-                     -1});
+                     -1,
+                     "nothing to do if these are not bounces; else --start/--end around the drop"});
     }
   }
   // Sequences far quieter than the loudest one at the same impact speed: not this ball.
@@ -271,7 +278,9 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
                        " dB quieter than the loudest sequence of this recording, so they are not "
                        "this ball (sequence_level_tolerance_db = " +
                        Fmt("%g", o.sequence_level_tolerance_db) + ")",
-                   -1});
+                   -1,
+                   "nothing to do if another ball or object made them; to analyse them, "
+                   "--start/--end around them"});
   }
   std::vector<Sequence> kept;
   for (std::size_t s = 0; s < seqs.size(); ++s)

@@ -234,13 +234,13 @@ void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
                std::abs(c.impacts - used->impacts) > std::max(2, used->impacts / 10);
   }
   if (!disagree) return;
-  out->push_back({"channel_choice",
-                  "the channels disagree; " + name(r.channel) +
-                      " was used: its main sequence scores " + Fmt("%.1f", used->score) + " (" +
-                      std::to_string(used->impacts) + " impacts from " +
-                      Fmt("%.4f", used->first_impact_s) + " s), " + others +
-                      " (score = sum of the members' tracker weights)",
-                  -1});
+  out->push_back(
+      {"channel_choice",
+       "the channels disagree; " + name(r.channel) + " was used: its main sequence scores " +
+           Fmt("%.1f", used->score) + " (" + std::to_string(used->impacts) + " impacts from " +
+           Fmt("%.4f", used->first_impact_s) + " s), " + others +
+           " (score = sum of the members' tracker weights)",
+       -1, "listen to each (--channel N --click-track FILE.wav) and choose with --channel N"});
 }
 
 }  // namespace bouncecal

@@ -264,8 +264,10 @@ void RegisterAnalyze(CLI::App& app) {
   auto flags = std::make_shared<AnalyzeFlags>();
   CLI::App* sub = app.add_subcommand(
       "analyze", "impacts -> per-bounce speeds, restitution e and energy loss eta (with sigmas)");
-  sub->add_option("FILE", flags->files,
-                  "recordings (any format libsndfile or FFmpeg reads; or none with --impacts)");
+  sub->add_option(
+      "FILE", flags->files,
+      "recordings (any format libsndfile or FFmpeg reads; - reads standard input; or none "
+      "with --impacts)");
   AddDetectFlags(sub, &flags->detect);
   AddSceneFlags(sub, &flags->scene, /*with_law=*/false);
   sub->add_option(

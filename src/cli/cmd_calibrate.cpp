@@ -182,7 +182,9 @@ int RunBatch(const CalibrateArgs& a, const Scene& scene, const CalibrationOption
     if (a.json) return DumpJson(CalibrationRowJson(names[i], c, e));
     return names[i] + ": " +
            (e ? std::string("FAILED (") + ErrorCodeName(e->code()) + "): " + e->what()
-              : c->BriefReport() + (c->outcome == FitOutcome::kConverged ? "" : " — " + c->reason));
+              : c->BriefReport() + (c->outcome == FitOutcome::kConverged
+                                        ? ""
+                                        : " — " + c->reason + "; next: " + c->hint));
   };
   // Every file gets its line: a failure while formatting one becomes that file's error line.
   auto line_for = [&](size_t i) {
@@ -306,8 +308,35 @@ std::vector<Assumed> AssumedFor(const GivenScene& gs, const Calibration& c) {
 // The outcome as the exit code (the parameter file is written before).
 void ExitWithOutcome(const Calibration& c) {
   if (c.outcome == FitOutcome::kConverged) return;
-  throw Error(FitOutcomeExitCode(c.outcome),
-              std::string("calibrate: outcome ") + FitOutcomeName(c.outcome) + ": " + c.reason);
+  throw Error(FitOutcomeExitCode(c.outcome), std::string("calibrate: outcome ") +
+                                                 FitOutcomeName(c.outcome) + ": " + c.reason +
+                                                 (c.hint.empty() ? "" : "; next: " + c.hint));
+}
+
+// What to try when no law is adequate: the hint of the law that missed by least (the smallest
+// misfit, else the first row with a hint), without its advice to try the other laws (every
+// one was tried).
+std::string NoLawHint(const std::vector<LawComparisonRow>& rows) {
+  const LawComparisonRow* best = nullptr;
+  for (const auto& r : rows) {
+    if (r.fit.hint.empty()) continue;
+    if (best == nullptr ||
+        (std::isfinite(r.fit.misfit_e) && !(best->fit.misfit_e <= r.fit.misfit_e)))
+      best = &r;
+  }
+  if (best == nullptr) return "";
+  std::string kept;
+  std::istringstream steps(best->fit.hint);
+  for (std::string step; std::getline(steps, step, ';');) {
+    if (!step.empty() && step.front() == ' ') step.erase(0, 1);
+    if (step.find("--law all") != std::string::npos ||
+        step.find("e changes with speed") != std::string::npos)
+      continue;
+    kept += (kept.empty() ? "" : "; ") + step;
+  }
+  return kept.empty() ? "check the scene (the ball, --drag, --height) and the impacts used "
+                        "(detect --click-track FILE.wav)"
+                      : kept;
 }
 
 void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const CalibrationOptions& opts,
@@ -360,13 +389,16 @@ void RunComparison(const CalibrateArgs& a, const GivenScene& gs, const Calibrati
       for (const auto& s : inadequate) list += (list.empty() ? "" : ", ") + s;
       std::cout << "not adequate (not ranked): " << list << "\n";
     }
+    if (any) std::cout << "next: " << rows.front().fit.hint << "\n";
   }
   std::cout << std::flush;
   if (!any) {
+    const std::string hint = NoLawHint(rows);
     throw Error(
         ErrorCode::kFitFailed,
         "no contact law fits these recordings adequately" +
-            (rows.empty() ? "" : ": " + rows.front().fit.law + ": " + rows.front().fit.reason));
+            (rows.empty() ? "" : ": " + rows.front().fit.law + ": " + rows.front().fit.reason) +
+            (hint.empty() ? "" : "; next: " + hint));
   }
   if (!a.output.empty()) {
     WriteParamFile(a.output, CalibrationJson(rows.front().fit, prov, options_json),
@@ -397,6 +429,11 @@ void Run(const CalibrateArgs& a) {
     throw Error(ErrorCode::kUsage,
                 "--report/--plot show one fit: not with --batch (run "
                 "`bouncecal report FILE` per file)");
+  }
+  if (a.report.any() && std::find(a.files.begin(), a.files.end(), "-") != a.files.end()) {
+    throw Error(ErrorCode::kUsage,
+                "--report/--plot read the recordings again: not with standard input (-), which "
+                "is read once; save it to a file, or run `bouncecal report -`");
   }
   ReportPaths report = a.report;
   report.force = a.force;
@@ -456,7 +493,8 @@ void RegisterCalibrate(CLI::App& app) {
   auto args = std::make_shared<CalibrateArgs>();
   CLI::App* sub = app.add_subcommand(
       "calibrate", "fit a contact law's damping to recordings and write the parameter file");
-  sub->add_option("files", args->files, "recordings (several: one joint fit, or --batch)")
+  sub->add_option("files", args->files,
+                  "recordings (several: one joint fit, or --batch; - reads standard input)")
       ->required();
   AddSceneFlags(sub, &args->scene, true);
   sub->add_option("--strategy", args->strategy,

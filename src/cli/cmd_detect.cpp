@@ -189,8 +189,10 @@ void RegisterDetect(CLI::App& app) {
   auto args = std::make_shared<DetectArgs>();
   CLI::App* sub =
       app.add_subcommand("detect", "Find the impacts and bounce sequences in recordings");
-  sub->add_option("FILE", args->files,
-                  "recordings (any format libsndfile or FFmpeg reads: WAV, FLAC, m4a/AAC, ...)");
+  sub->add_option(
+      "FILE", args->files,
+      "recordings (any format libsndfile or FFmpeg reads: WAV, FLAC, m4a/AAC, ...; - reads "
+      "standard input)");
   AddDetectFlags(sub, &args->detect);
   sub->add_option("--hop-ms", args->hop_ms, "STFT hop in ms (0 = auto, ~0.33 ms)")
       ->default_val(0.0);

@@ -176,7 +176,9 @@ void RegisterReport(CLI::App& app) {
       "report",
       "detect, analyze and fit recordings; write a self-contained HTML report and/or "
       "a static figure");
-  sub->add_option("files", args->files, "recordings (several: one joint fit)")->required();
+  sub->add_option("files", args->files,
+                  "recordings (several: one joint fit; - reads standard input)")
+      ->required();
   AddOutputOption(sub, "-o,--output", &args->paths.html, "write the HTML report here");
   AddOutputOption(sub, "--plot", &args->paths.plot,
                   "write the same charts as a static figure, FILE.svg or FILE.png (gnuplot)");

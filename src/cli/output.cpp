@@ -21,8 +21,9 @@ CLI::Option* AddOutputOption(CLI::App* sub, const std::string& names, std::strin
 
 void PrintWarnings(const std::vector<Warning>& warnings) {
   for (const Warning& w : warnings)
-    std::fprintf(stderr, "bouncecal: warning [%s]: %s\n", w.code.c_str(),
-                 FlagText(w.message).c_str());
+    std::fprintf(stderr, "bouncecal: warning [%s]: %s%s\n", w.code.c_str(),
+                 FlagText(w.message).c_str(),
+                 w.hint.empty() ? "" : ("; next: " + FlagText(w.hint)).c_str());
 }
 
 int DefaultJobs() {

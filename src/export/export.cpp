@@ -14,7 +14,9 @@
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/user_text.hpp"
+#include "bouncecal/io/param_file.hpp"
 #include "bouncecal/io/param_resolved.hpp"
+#include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 #include "export/deck.hpp"
@@ -79,16 +81,18 @@ std::string Trim(std::string s) {
 
 void CheckOutcome(const ParamFile& pf, const std::string& path, bool force) {
   if (pf.outcome == "converged" || force) return;
-  std::string message;
-  if (pf.doc.contains("fit") && pf.doc["fit"].contains("message") &&
-      pf.doc["fit"]["message"].is_string()) {
-    message = pf.doc["fit"]["message"].get<std::string>();
-  }
+  auto text = [&](const char* key) {
+    return pf.doc.contains("fit") && pf.doc["fit"].contains(key) && pf.doc["fit"][key].is_string()
+               ? pf.doc["fit"][key].get<std::string>()
+               : std::string();
+  };
+  const std::string message = text("message"), hint = text("hint");
   throw Error(ErrorCode::kFitFailed,
               path + ": fit.outcome is '" + (pf.outcome.empty() ? "missing" : pf.outcome) +
                   "', not 'converged'" + (message.empty() ? "" : " (" + message + ")") +
                   ": its parameters may not describe the recording; not exported "
-                  "(ExportOptions::force overrides)");
+                  "(ExportOptions::force overrides)" +
+                  (hint.empty() ? "" : "; next, for the fit: " + hint));
 }
 
 // Checks the output directory (run it before any work); true when it already exists.
@@ -209,6 +213,36 @@ std::string LawSummary(const Scene& s) {
   return out;
 }
 
+// The fitted law's misfit to the measured bounces, beside the mapping's error in the header.
+std::string LawMisfitComment(const ExportResult& r) {
+  if (!std::isfinite(r.law_misfit_e))
+    return "fit: the law's misfit to the measured bounces was not tested (too few bounces, the "
+           "trajectory strategy, or an older parameter file)";
+  const bool small = std::any_of(r.warnings.begin(), r.warnings.end(),
+                                 [](const Warning& w) { return w.code == "law_misfit_small"; });
+  return "fit: the law's e(v) differs from a smoother e(v) through the measured bounces by " +
+         Num(r.law_misfit_e) + " rms (tolerance " + Num(r.law_misfit_tolerance_e) + "; " +
+         (small ? "significant but below it: law_misfit_small" : "not significant") +
+         "): the simulator reproduces the law, to the mapping error above, not that difference";
+}
+
+// The fit's law misfit and its warning from the parameter file (absent in older files).
+void ReadLawMisfit(const ParamFile& pf, ExportResult* r) {
+  const nlohmann::json& fit = pf.doc.contains("fit") ? pf.doc["fit"] : nlohmann::json();
+  auto number = [&](const char* key) {
+    return fit.is_object() && fit.contains(key) && fit[key].is_number()
+               ? fit[key].get<double>()
+               : std::numeric_limits<double>::quiet_NaN();
+  };
+  r->law_misfit_e = number("misfit_e");
+  r->law_misfit_tolerance_e = number("misfit_tolerance_e");
+  if (!pf.doc.contains("warnings") || !pf.doc["warnings"].is_array()) return;
+  for (const auto& w : pf.doc["warnings"]) {
+    if (!w.is_object() || w.value("code", "") != "law_misfit_small") continue;
+    r->warnings.push_back({"law_misfit_small", w.value("message", ""), -1, w.value("hint", "")});
+  }
+}
+
 std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult& r,
                                         const TimeStep& ts) {
   const Mapping& m = in.mapping;
@@ -223,6 +257,7 @@ std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult&
   c.push_back("mapping: max |e_native - e_fit| = " + Num(m.max_e_error) +
               ", max contact-time error " + Num(m.max_contact_time_error) + " (relative), over " +
               Num(m.speeds_m_s.front()) + " .. " + Num(m.speeds_m_s.back()) + " m/s");
+  c.push_back(LawMisfitComment(r));
   c.push_back("ball: R = " + Num(in.radius_m) + " m, m = " + Num(in.mass_kg) + " kg (density " +
               Num(in.density_kg_m3) + " kg/m^3), rigid plane z = 0, g = " + Num(in.g_m_s2) +
               " m/s^2");
@@ -538,6 +573,7 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   r.scene = ExportSceneName(options.scene);
   r.law = scene.law.name;
   r.law_json = exporter::ExportedLawJson(pf, *law, scene);
+  ReadLawMisfit(pf, &r);
   exporter::AddVersionNotes(&r, options.target, options.simulator_version);
   if (scene.effects.drag != DragModel::kNone) {
     r.notes.push_back("air drag (" + std::string(DragModelName(scene.effects.drag)) +
@@ -671,6 +707,11 @@ nlohmann::json ExportResultJson(const ExportResult& r) {
           {"exact", r.exact},
           {"max_e_error", r.max_e_error},
           {"max_contact_time_rel_error", r.max_contact_time_error},
+          {"law_misfit_e", std::isfinite(r.law_misfit_e) ? nlohmann::json(r.law_misfit_e)
+                                                         : nlohmann::json(nullptr)},
+          {"law_misfit_tolerance_e", std::isfinite(r.law_misfit_tolerance_e)
+                                         ? nlohmann::json(r.law_misfit_tolerance_e)
+                                         : nlohmann::json(nullptr)},
           {"coefficients", coeffs},
           {"speeds_m_s", r.speeds_m_s},
           {"time_step_s", r.time_step_s},
@@ -684,7 +725,7 @@ nlohmann::json ExportResultJson(const ExportResult& r) {
           {"files", r.files},
           {"column", r.column},
           {"notes", r.notes},
-          {"warnings", nlohmann::json::array()}};
+          {"warnings", WarningsJson(r.warnings)}};
 }
 
 }  // namespace bouncecal

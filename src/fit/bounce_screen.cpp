@@ -191,7 +191,14 @@ void CheckDropHeight(const Scene& scene, const AnalysisOptions& options, const A
            Printf(" (%.1f sigma)", std::abs(z)) +
            (std::isfinite(h_fit) ? Printf(", a drop of %.3g m", h_fit) : "") + ": " + cause +
            "; the first impact is left out of fits",
-       0});
+       0,
+       std::isfinite(h_fit)
+           ? Printf("measure the drop height of the ball's bottom again, or try --height %.3g "
+                    "with --height-sigma (the [drop] table), or leave the drop out (calibrate "
+                    "--ignore-drop)",
+                    h_fit)
+           : std::string("measure the drop height again, or leave the drop out (calibrate "
+                         "--ignore-drop)")});
 }
 
 }  // namespace
@@ -237,7 +244,9 @@ void ScreenBounces(const Scene& scene, const AnalysisOptions& options, Analysis*
              Printf("; beyond %.1f sigma for %d bounces: a mis-tracked impact or an irregular "
                     "bounce, left out of fits",
                     z_max, n),
-         p.bounce});
+         p.bounce,
+         "listen to that impact (detect --click-track FILE.wav); nothing to do if the ball hit "
+         "an uneven spot"});
   }
   if (flagged > 0 && n - flagged >= 3) {
     const RestitutionData regular = later.Subset(keep);
@@ -295,7 +304,7 @@ void CheckDrag(const Sequence& sequence, const Scene& scene, const AnalysisOptio
                   effect, a->bounces[static_cast<size_t>(at)].index,
                   a->bounces[static_cast<size_t>(at)].e, d.bounces[static_cast<size_t>(at)].e) +
            Printf("%.0f times that e's sigma; turn it on (effects.drag = \"quadratic\")", ratio),
-       -1});
+       -1, "--drag quadratic ([effects] drag = \"quadratic\" in the scene file)"});
 }
 
 }  // namespace bouncecal

@@ -95,6 +95,10 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
   c->chi2_dof = c->dof > 0 ? c->chi2 / c->dof : kNaN;
   c->trend_chi2 = d.trend_chi2;
   c->trend_dof = d.trend_dof;
+  c->misfit_p_value = d.misfit_p_value;
+  c->misfit_e = d.misfit_e;
+  c->misfit_tolerance_e = d.misfit_tolerance_e;
+  c->misfit_scatter_e = d.misfit_scatter_e;
   c->neg_log_likelihood = s.scatter.neg_log_likelihood;
   const int k = p + (fp.options.estimate_scatter ? 1 : 0);
   c->aic = 2.0 * c->neg_log_likelihood + 2.0 * k;
@@ -141,6 +145,7 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
   c->rms_residual = nres ? std::sqrt(ss / nres) : 0.0;
   c->outcome = d.outcome;
   c->reason = d.reason;
+  c->hint = d.hint;
   for (const Warning& w : d.warnings) c->warnings.push_back(w);
   std::vector<std::string> notes = {fp.seed_note};
   if (starts.tried > 1) {
@@ -156,10 +161,12 @@ void Assemble(const calib::FitProblem& fp, const calib::Solution& s, const calib
 }
 
 // A result without a fit (the data cannot give one): parameters at their start values.
-Calibration Unfitted(const calib::FitProblem& fp, FitOutcome outcome, const std::string& reason) {
+Calibration Unfitted(const calib::FitProblem& fp, FitOutcome outcome, const std::string& reason,
+                     const std::string& hint) {
   Calibration c = Skeleton(fp, fp.setup.start);
   c.outcome = outcome;
   c.reason = reason;
+  c.hint = hint;
   c.message = reason;
   c.chi2 = c.chi2_dof = c.aic = c.bic = kNaN;
   c.scatter_e = c.scatter_e_sigma = kNaN;
@@ -175,12 +182,17 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   std::atomic<long> simulations{0};
   calib::FitProblem fp = calib::SetUpProblem(recordings, scene, options);  // stage 1
   if (!fp.not_determinable.empty()) {
-    return Unfitted(fp, FitOutcome::kNotDeterminable, fp.not_determinable);
+    return Unfitted(fp, FitOutcome::kNotDeterminable, fp.not_determinable,
+                    "record more bounces (a higher drop, a quieter room, the microphone near the "
+                    "impact point), or give the drop height (--height) so that the first impact "
+                    "counts");
   }
   if (fp.e_median >= 1.0) {
     return Unfitted(fp, FitOutcome::kFailed,
                     "the measured median restitution " + Fmt(fp.e_median, 4) +
-                        " is >= 1: these impacts do not form a damped bounce sequence");
+                        " is >= 1: these impacts do not form a damped bounce sequence",
+                    "listen to the impacts used (detect --click-track FILE.wav) and check the "
+                    "scene (--drag, --contact-duration)");
   }
   const std::vector<std::vector<double>> starts = calib::MakeStarts(&fp, &simulations);  // 2
   calib::ProbeContactCost(&fp, starts.front());
@@ -221,7 +233,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   if (s.ok) {
     Assemble(fp, s, u, d, report, &c);
   } else {
-    c = Unfitted(fp, FitOutcome::kFailed, d.reason);
+    c = Unfitted(fp, FitOutcome::kFailed, d.reason, d.hint);
   }
   c.iterations = s.iterations;
   c.simulations = simulations.load();
@@ -407,6 +419,9 @@ bool CalibrationOptions::IsValid(std::string* error) const {
   }
   if (!(poor_fit_p_value > 0.0 && poor_fit_p_value < 1.0)) {
     return fail("poor_fit_p_value = " + Fmt(poor_fit_p_value) + " must be in (0, 1)");
+  }
+  if (!(misfit_tolerance_e >= 0.0) || !std::isfinite(misfit_tolerance_e)) {
+    return fail("misfit_tolerance_e = " + Fmt(misfit_tolerance_e) + " must be >= 0");
   }
   if (!(plausible_scatter_e > 0.0) || !std::isfinite(plausible_scatter_e)) {
     return fail("plausible_scatter_e = " + Fmt(plausible_scatter_e) + " must be positive");

@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -195,19 +196,41 @@ Uncertainty EstimateUncertainty(const FitProblem& problem, const Solution& s,
 struct Diagnosis {
   FitOutcome outcome = FitOutcome::kConverged;
   std::string reason;  // one line
+  std::string hint;    // the next step, one line
   std::vector<Warning> warnings;
-  double trend_chi2 = 0.0;  // lack-of-fit statistic of the restitution model (see Diagnose)
+  double trend_chi2 = 0.0;  // lack-of-fit statistic of the restitution model (LawMisfit::chi2)
   int trend_dof = 0;
+  double misfit_p_value = std::numeric_limits<double>::quiet_NaN();
+  double misfit_e = std::numeric_limits<double>::quiet_NaN();
+  double misfit_tolerance_e = std::numeric_limits<double>::quiet_NaN();
+  double misfit_scatter_e = std::numeric_limits<double>::quiet_NaN();
 };
 
 Diagnosis Diagnose(const FitProblem& problem, const Solution& s, const Uncertainty& u,
                    const StartsReport& starts);
 
-// Lack of fit of the per-bounce model: Wald test of an extra trend a ln(u) + b ln(u)^2 in the
-// residuals, with sigma_s re-estimated under that alternative. Returns chi2 (dof degrees of
-// freedom); trend_rms is the rms change of the predictions the trend makes, scale the scatter
-// about law-plus-trend combined with the median timing sigma of e.
-double TrendChi2(const FitProblem& problem, const Solution& s, int* dof, double* trend_rms,
-                 double* scale);
+// Stage 5a (law_misfit.cpp): the law's e(v) against a more flexible one, law + a x + b x^2 with
+// x = ln(u / u_mean), each with its own sigma_s (ML profile), by their likelihood ratio; the
+// misfit's size is the rms over the bounces of the two fitted curves' difference (each at its
+// REML sigma_s). dof = 0: not tested (trajectory strategy, or too few points).
+struct LawMisfit {
+  int dof = 0;               // parameters the flexible e(v) adds (2; 1 with few points)
+  double chi2 = 0.0;         // 2 (nll_law - nll_flexible)
+  double p_value = 1.0;      // chi2(dof) upper tail
+  double rms_e = 0.0;        // rms of flexible e(v) - law e(v) over the bounces
+  double scatter_e = 0.0;    // sigma_s about the flexible e(v): the ball's own scatter
+  double tolerance_e = 0.0;  // max(CalibrationOptions::misfit_tolerance_e, scatter_e)
+  bool significant = false;  // p_value < CalibrationOptions::poor_fit_p_value
+  bool matters = false;      // significant and rms_e > tolerance_e: poor_fit
+};
+LawMisfit TestLawMisfit(const FitProblem& problem, const Solution& s);
+// The registered laws (the expression law aside) whose e changes with the impact speed, found
+// by evaluating each at its default parameters a decade apart about the median measured speed.
+std::vector<std::string> SpeedDependentLaws(const FitProblem& problem);
+// What to try when a law's e(v) has the wrong shape: --law all, the speed-dependent laws other
+// than `law`, the contact-duration effect when it is off, a drop height's sigma when it is exact.
+std::string LawShapeHint(const FitProblem& problem, const std::string& law);
+// One line with the misfit's numbers.
+std::string MisfitText(const LawMisfit& m);
 
 }  // namespace bouncecal::calib

@@ -56,6 +56,7 @@ std::string Calibration::FullReport() const {
   os << "outcome: " << FitOutcomeName(outcome);
   if (outcome != FitOutcome::kConverged && !reason.empty()) os << " — " << reason;
   os << "\n";
+  if (!hint.empty()) os << "next: " << hint << "\n";
   if (!message.empty()) os << "notes: " << message << "\n";
   os << "parameters:\n";
   size_t w = 4;

@@ -170,7 +170,9 @@ Flights FlightStage(const Sequence& sequence, const Scene& scene, const Analysis
           {"missed_impact",
            "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
                ": an impact seems missing; speeds and e around it are not given",
-           static_cast<int>(k)});
+           static_cast<int>(k),
+           "listen to the impacts kept (detect --click-track FILE.wav); a quiet bounce may need "
+           "a lower --min-snr-db"});
       continue;
     }
     const double flight_time = interval - f.tau[k];
@@ -179,7 +181,9 @@ Flights FlightStage(const Sequence& sequence, const Scene& scene, const Analysis
                                "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
                                    Printf(": %.3g s is not longer than the contact duration %.3g s",
                                           interval, f.tau[k]),
-                               static_cast<int>(k)});
+                               static_cast<int>(k),
+                               "check the ball's size and material (--diameter, --material): "
+                               "they set the contact duration"});
       continue;
     }
     f.v_out[k] = flight.LaunchSpeedForFlightTime(flight_time);
@@ -244,7 +248,11 @@ void BounceStage(const Flights& f, Analysis* out) {
                (k == 0 ? "the drop height/impact speed is too low for the first interval, or the "
                          "first detected impact is not the drop's first"
                        : "timing noise, a wrong scene (drag) or a mis-tracked impact"),
-           static_cast<int>(k)});
+           static_cast<int>(k),
+           k == 0 ? "check the drop height (--height, of the ball's bottom) and that the "
+                    "recording starts before the drop's first impact"
+                  : "check the drag (--drag quadratic) and listen to the impacts (detect "
+                    "--click-track FILE.wav)"});
     }
   }
   // Correlation of successive e's: shared onsets t_k (e_k's "this", e_{k+1}'s "prev") and
@@ -292,7 +300,7 @@ void MeanEtaStage(const Flights& f, Analysis* out) {
     out->warnings.push_back({"no_mean_eta",
                              "fewer than three bounces with a known e: no mean eta of the first "
                              "three",
-                             -1});
+                             -1, "record more bounces (a higher drop, a quieter room)"});
   }
 }
 

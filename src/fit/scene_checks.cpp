@@ -41,7 +41,7 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
         {"units_suspect",
          Printf("ball.diameter_m = %g m is outside a ball's 0.1 mm .. 1 m", d) +
              (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
-         -1});
+         -1, "give the diameter in metres (--diameter, [ball] diameter_m)"});
   }
   if (drop_used && scene.drop.height_m && *scene.drop.height_m > kMaxHeightM) {
     const double h = *scene.drop.height_m;
@@ -50,7 +50,7 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
         {"units_suspect",
          Printf("drop.height_m = %g m is higher than a drop experiment (50 m)", h) +
              (unit.empty() ? std::string(": is it in metres?") : ": it looks like " + unit),
-         -1});
+         -1, "give the height in metres (--height, [drop] height_m)"});
   }
   const double rho = scene.ball.Density();
   if (std::isfinite(rho) && (rho < kMinDensity || rho > kMaxDensity)) {
@@ -65,7 +65,7 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
     }
     out.push_back({"units_suspect",
                    Printf("the ball's density %g kg/m^3 is outside 10 .. 25000 kg/m^3", rho) + hint,
-                   -1});
+                   -1, "give the mass in kg (--mass) or the density in kg/m^3 (--density)"});
   }
   const double g = scene.environment.g_m_s2;
   if (g < kMinG || g > kMaxG) {
@@ -74,7 +74,7 @@ std::vector<Warning> SceneUnitWarnings(const Scene& scene, bool drop_used) {
                        (g > 100.0 && g * 1e-3 >= kMinG && g * 1e-3 <= kMaxG
                             ? Printf(": it looks like mm/s^2 (%g m/s^2)", g * 1e-3)
                             : std::string(": is it in m/s^2?")),
-                   -1});
+                   -1, "give g in m/s^2 (--g, [environment] g_m_s2)"});
   }
   return out;
 }

@@ -124,7 +124,8 @@ std::string BouncecalVersion() { return BOUNCECAL_VERSION; }
 
 Provenance MakeProvenance(const std::vector<std::string>& input_paths) {
   Provenance p;
-  for (const auto& path : input_paths) p.inputs.push_back({path, Sha256OfFile(path)});
+  for (const auto& path : input_paths)
+    p.inputs.push_back({path, path == kStandardInput ? std::string() : Sha256OfFile(path)});
   p.bouncecal_version = BouncecalVersion();
   p.date_utc = NowIsoDateUtc();
   return p;

@@ -84,7 +84,10 @@ json JsonNumber(const std::optional<double>& v) { return v ? JsonNumber(*v) : js
 json WarningsJson(const std::vector<Warning>& warnings) {
   json out = json::array();
   for (const Warning& w : warnings) {
-    out.push_back({{"code", w.code}, {"message", w.message}, {"impact", IntOrNull(w.impact)}});
+    out.push_back({{"code", w.code},
+                   {"message", w.message},
+                   {"impact", IntOrNull(w.impact)},
+                   {"hint", w.hint}});
   }
   return out;
 }
@@ -346,6 +349,7 @@ json OptionsJson(const CalibrationOptions& o) {
           {"e_of_v_points", o.e_of_v_points},
           {"undetermined_relative_sigma", o.undetermined_relative_sigma},
           {"poor_fit_p_value", o.poor_fit_p_value},
+          {"misfit_tolerance_e", o.misfit_tolerance_e},
           {"plausible_scatter_e", o.plausible_scatter_e},
           {"analysis",
            {{"irregular_alpha", o.analysis.irregular_alpha},
@@ -373,6 +377,7 @@ json CalibrationJson(const Calibration& c, const Provenance& prov, const json& o
               {"outcome", FitOutcomeName(c.outcome)},
               {"exit_code", static_cast<int>(FitOutcomeExitCode(c.outcome))},
               {"reason", c.reason},
+              {"hint", c.hint},
               {"message", c.message},
               {"scatter_e", JsonNumber(c.scatter_e)},
               {"scatter_e_sigma", JsonNumber(c.scatter_e_sigma)},
@@ -385,6 +390,10 @@ json CalibrationJson(const Calibration& c, const Provenance& prov, const json& o
               {"num_free", c.num_free},
               {"trend_chi2", JsonNumber(c.trend_chi2)},
               {"trend_dof", c.trend_dof},
+              {"misfit_p_value", JsonNumber(c.misfit_p_value)},
+              {"misfit_e", JsonNumber(c.misfit_e)},
+              {"misfit_tolerance_e", JsonNumber(c.misfit_tolerance_e)},
+              {"misfit_scatter_e", JsonNumber(c.misfit_scatter_e)},
               {"neg_log_likelihood", JsonNumber(c.neg_log_likelihood)},
               {"aic", JsonNumber(c.aic)},
               {"bic", JsonNumber(c.bic)},
@@ -457,8 +466,8 @@ json CalibrationRowJson(const std::string& file, const Calibration* c, const Err
     j["status"] = "error";
     j["error"] = err != nullptr ? ErrorJson(err->code(), err->what())
                                 : ErrorJson(ErrorCode::kInternal, "no result");
-    for (const char* k : {"law", "outcome", "reason", "impacts", "scatter_e", "scatter_e_sigma",
-                          "rms_residual", "residual_unit", "chi2_dof"})
+    for (const char* k : {"law", "outcome", "reason", "hint", "impacts", "scatter_e",
+                          "scatter_e_sigma", "rms_residual", "residual_unit", "chi2_dof"})
       j[k] = nullptr;
     j["warnings"] = json::array();
     return j;
@@ -470,6 +479,7 @@ json CalibrationRowJson(const std::string& file, const Calibration* c, const Err
   j["law"] = LawJson(*c);
   j["outcome"] = FitOutcomeName(c->outcome);
   j["reason"] = c->reason;
+  j["hint"] = c->hint;
   j["impacts"] = impacts;
   j["scatter_e"] = JsonNumber(c->scatter_e);
   j["scatter_e_sigma"] = JsonNumber(c->scatter_e_sigma);

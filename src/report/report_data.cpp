@@ -143,7 +143,8 @@ json WarningsJson(const ReportRecording& r) {
                    {"message", w.message},
                    {"impact", w.impact >= 0 ? json(w.impact) : json()},
                    {"time_s", Num(t)},
-                   {"stage", stage}});
+                   {"stage", stage},
+                   {"hint", w.hint}});
   };
   if (r.detection)
     for (const Warning& w : r.detection->warnings) add(w, "detect");
@@ -247,6 +248,8 @@ json LawComparisonRowsJson(const std::vector<LawComparisonRow>& rows) {
     out.push_back({{"rank", ++rank},
                    {"law", LawJson(c)},
                    {"outcome", FitOutcomeName(c.outcome)},
+                   {"reason", c.reason},
+                   {"hint", c.hint},
                    {"message", c.message},
                    {"delta_aic", failed ? json() : Num(r.delta_aic)},
                    {"aic", failed ? json() : Num(c.aic)},

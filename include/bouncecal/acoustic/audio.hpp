@@ -10,6 +10,14 @@
 //   Audio a = ReadAudio("drop.wav");                  // throws Error naming the file
 //   std::vector<float> x = SelectChannel(a, ParseChannelSelection("auto"));
 //
+// "-" reads standard input, and a pipe, FIFO or device is read as a stream, once, from start to
+// end (formats only FFmpeg decodes are first copied to a temporary file). A header that gives
+// no length — FLAC STREAMINFO total 0 (libsndfile: SF_COUNT_MAX frames), a WAV data size of 0
+// or 0xFFFFFFFF, what an encoder writing to a pipe leaves — is read to the end of the data:
+// AudioInfo::frames is kUnknownFrames until then. Such a stream that ends inside a frame is read
+// up to its last whole frame, with a `truncated_stream` warning (Audio::warnings,
+// AudioReader::warnings); a declared length the data falls short of stays an error.
+//
 // Errors (Error codes in error.hpp): kInputMissing (missing, directory, unreadable),
 // kNotAudio (not audio, unsupported, truncated, zero frames), kBadSamples (NaN/Inf, or a
 // sample beyond 1e6 times full scale).
@@ -20,15 +28,20 @@
 #include <string>
 #include <vector>
 
+#include "bouncecal/core/warning.hpp"
+
 namespace bouncecal {
+
+// AudioInfo::frames of a recording whose header gives no length, until its end is read.
+inline constexpr std::int64_t kUnknownFrames = -1;
 
 struct AudioInfo {
   std::string path;
   double sample_rate_hz = 0.0;
   int channels = 0;
-  std::int64_t frames = 0;
-  std::string format;   // "WAV", "FLAC", ... (FFmpeg: its demuxer name, "mov,mp4,m4a,3gp,...")
-  std::string subtype;  // "PCM_16", "FLOAT", ... (FFmpeg: the codec, "aac", "opus", ...)
+  std::int64_t frames = 0;  // kUnknownFrames: not given by the header, not read to the end yet
+  std::string format;       // "WAV", "FLAC", ... (FFmpeg: its demuxer name, "mov,mp4,m4a,3gp,...")
+  std::string subtype;      // "PCM_16", "FLOAT", ... (FFmpeg: the codec, "aac", "opus", ...)
   std::string decoder = "libsndfile";  // or "ffmpeg"
   bool lossy = false;                  // a lossy codec (FFmpeg path): onsets are smeared
   // Priming samples of the codec (encoder delay): trimmed by the decoder when the container says
@@ -37,7 +50,7 @@ struct AudioInfo {
   std::int64_t codec_delay_samples = 0;
   bool codec_delay_trimmed = false;
   double duration_s() const {
-    return sample_rate_hz > 0 ? static_cast<double>(frames) / sample_rate_hz : 0.0;
+    return sample_rate_hz > 0 && frames > 0 ? static_cast<double>(frames) / sample_rate_hz : 0.0;
   }
 };
 
@@ -64,6 +77,7 @@ struct Audio {
   AudioInfo info;
   std::vector<std::vector<float>> channels;  // channels[c][frame]
   std::vector<ClippingReport> clipping;      // one per channel
+  std::vector<Warning> warnings;             // truncated_stream
 };
 
 // A recording read block by block, so that detection of any length needs memory for one block
@@ -72,8 +86,11 @@ struct Audio {
 // Read checks each sample as it passes (NaN/Inf, beyond 1e6 x full scale: Error(kBadSamples)
 // naming channel, frame and time) and keeps each channel's clipping report up to date; the
 // end of the data before the header's frame count is Error(kNotAudio, "truncated ..."), raised
-// by the Read that meets it. Formats only FFmpeg decodes (m4a/AAC, MP3, ...) are decoded whole
-// on opening (phone recordings: minutes) and then served block by block.
+// by the Read that meets it. A length the header does not give is read until the data ends, as
+// it arrives on a stream (each Read blocks until its frames or the end are there); info().frames
+// is then kUnknownFrames until the Read that returns 0, and a stream with no frame at all is
+// Error(kNotAudio) there. Formats only FFmpeg decodes (m4a/AAC, MP3, ...) are decoded whole on
+// opening (phone recordings: minutes) and then served block by block.
 //
 //   AudioReader r("drop.flac");
 //   std::vector<std::vector<float>> block;            // block[c][frame]
@@ -98,10 +115,14 @@ class AudioReader {
   std::int64_t Skip(std::int64_t frames);
   // Clipping of the frames read so far (every frame once Read returned 0), one per channel.
   std::vector<ClippingReport> clipping() const;
+  // What the reading found (truncated_stream), complete once Read returned 0.
+  const std::vector<Warning>& warnings() const;
 
  private:
   struct Source;
   struct Tracker;
+  // The data of an unknown length ended after `frames` frames: the length, and its warnings.
+  void EndOfUnknownLength(std::int64_t frames);
   std::int64_t ReadChecked(std::int64_t frames, std::vector<std::vector<float>>* out);
   AudioInfo info_;
   std::int64_t position_ = 0;
@@ -109,6 +130,7 @@ class AudioReader {
   std::vector<Tracker> trackers_;
   const Audio* memory_ = nullptr;  // the in-memory recording served, if any
   std::vector<std::vector<float>> scratch_;
+  std::vector<Warning> warnings_;
 };
 
 // libsndfile first, FFmpeg when libsndfile cannot open the file. MPEG audio (MP3: an ID3 tag or

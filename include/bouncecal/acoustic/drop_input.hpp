@@ -30,8 +30,9 @@ struct DropInputOptions {
   bool IsValid(std::string* error) const { return detect.IsValid(error); }
 };
 
-// The inputs as (recording, impacts file) pairs, either may be "" (see impacts_files). Throws
-// Error(kUsage) when the counts do not pair up or there is no input.
+// The inputs as (recording, impacts file) pairs, either may be "" (see impacts_files); a
+// recording "-" is standard input. Throws Error(kUsage) when the counts do not pair up, there is
+// no input, or standard input is named more than once.
 std::vector<std::pair<std::string, std::string>> PairInputs(
     const std::vector<std::string>& recordings, const DropInputOptions& options);
 

@@ -21,18 +21,22 @@
 //            writes profile.csv, front.csv and summary.json; column.json is the plan.
 // Refuses (Error) an unknown or newer schema, a fit whose outcome is not "converged" (unless
 // options.force), an existing output directory (unless options.force), and a law the target
-// cannot carry within options.max_e_error (unless options.allow_approximation).
+// cannot carry within options.max_e_error (unless options.allow_approximation). A converged fit
+// with the warning law_misfit_small exports; the decks' header and mapping.json state that
+// misfit beside the mapping's e error.
 //
 //   ExportOptions o; o.target = ExportTarget::kLammps;
 //   ExportResult r = ExportDeck("params.json", "out/", o);
 //   std::cout << DumpJson(ExportResultJson(r), 2);
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "bouncecal/core/warning.hpp"
 #include "bouncecal/export/column.hpp"
 #include "bouncecal/export/mapping.hpp"
 
@@ -82,6 +86,12 @@ struct ExportResult {
   double packing_restitution = 0.0;  // packing: the pairwise e used (0 for bounce)
   nlohmann::json column;             // column: the plan (beads, box, contacts, q_phi); else null
   std::vector<double> speeds_m_s;
+  // The fitted law's own misfit, from the parameter file (fit.misfit_e, fit.misfit_tolerance_e;
+  // NaN when the file does not give it): how far the law's e(v) is from a smoother e(v) through
+  // the measured bounces, beside max_e_error, how far the simulator's law is from the fitted one.
+  double law_misfit_e = std::numeric_limits<double>::quiet_NaN();
+  double law_misfit_tolerance_e = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Warning> warnings;  // the fit's law_misfit_small, carried with its hint
   std::vector<std::string> notes;
   std::vector<std::string> files;
 };

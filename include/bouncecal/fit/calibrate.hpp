@@ -27,12 +27,15 @@
 //   if (c.outcome == FitOutcome::kConverged) std::cout << c.FullReport();
 //
 // Outcomes (FitOutcome): converged; iteration_limit (the solver stopped at max_iterations, or
-// sigma_s did not settle); poor_fit (the law is rejected by its own goodness of fit: a residual
-// trend with speed at p < poor_fit_p_value, sigma_s beyond plausible_scatter_e, or trajectory
-// chi2 beyond its p < poor_fit_p_value quantile); not_determinable (the data cannot pin a free
+// sigma_s did not settle); poor_fit (the law is rejected by its own goodness of fit: its e(v)
+// misses a more flexible e(v) significantly, p < poor_fit_p_value, AND by more than
+// misfit_tolerance_e and the ball's own scatter — a smaller significant misfit is converged
+// with the warning law_misfit_small; sigma_s beyond plausible_scatter_e; or trajectory chi2
+// beyond its p < poor_fit_p_value quantile); not_determinable (the data cannot pin a free
 // damping parameter; says which and why); failed (no usable result). Data that defeat a fit
-// are outcomes with a one-line reason, not exceptions; bad input (options, scene, names)
-// throws Error. No wall-clock limit: results do not depend on the machine.
+// are outcomes with a one-line reason and a hint (what to try next), not exceptions; bad input
+// (options, scene, names) throws Error. No wall-clock limit: results do not depend on the
+// machine.
 //
 // Derivatives: kAuto uses the law's analytic de/dp (RestitutionGradient) where it has one (for
 // the trajectory: chained through the exact flight formulas when the scene has no
@@ -45,6 +48,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -109,6 +113,11 @@ struct CalibrationOptions {
   double undetermined_relative_sigma = 1.0;
   // Goodness of fit: the model is rejected (poor_fit) when a test's p-value is below this ...
   double poor_fit_p_value = 1e-3;
+  // ... and, for the law's e(v) against a more flexible one, when the misfit (rms over the
+  // bounces) also exceeds this and the ball's own scatter about the flexible e(v). 0.002: the
+  // e per impact the exporters' decks must reproduce in the simulators (export integration
+  // suite), so a smaller misfit is below what the downstream DEM runs are held to.
+  double misfit_tolerance_e = 0.002;
   // ... or when sigma_s exceeds this by more than two of its sigmas: real balls scatter by
   // 0.005-0.03 (docs/physics.md §6, misfit of the law included); beyond 0.05 the law does not
   // describe the bounces, or they are not one ball's bounces.
@@ -179,6 +188,7 @@ struct Calibration {
   bool analytic_jacobian = false;  // kAuto found an analytic path for this law/scene
   FitOutcome outcome = FitOutcome::kFailed;
   std::string reason;                       // one line: why this outcome
+  std::string hint;                         // one line: what to try next (flags, laws, scene)
   std::string message;                      // notes (start values, starts, ...)
   std::vector<Warning> warnings;            // coded diagnostics (README lists the codes)
   std::vector<FittedParameter> parameters;  // every law parameter, in the law's order
@@ -197,8 +207,17 @@ struct Calibration {
   double chi2_dof = 0.0;      // ~1 when the model is right
   double rms_residual = 0.0;  // s (trajectory) or e (restitution)
   std::string residual_unit;  // "s" or "1"
-  double trend_chi2 = 0.0;    // lack-of-fit statistic (residual trend with speed), trend_dof
+  // The law's e(v) against a more flexible e(v), each with its own scatter (docs/physics.md
+  // §9.4): likelihood-ratio chi2 with trend_dof degrees of freedom (0: not tested) and its
+  // p-value; the misfit, rms over the bounces of the two curves' difference; the tolerance it
+  // was judged against (max of misfit_tolerance_e and misfit_scatter_e, the ball's scatter
+  // about the flexible e(v)). NaN when not tested.
+  double trend_chi2 = 0.0;
   int trend_dof = 0;
+  double misfit_p_value = std::numeric_limits<double>::quiet_NaN();
+  double misfit_e = std::numeric_limits<double>::quiet_NaN();
+  double misfit_tolerance_e = std::numeric_limits<double>::quiet_NaN();
+  double misfit_scatter_e = std::numeric_limits<double>::quiet_NaN();
   double neg_log_likelihood = 0.0;  // Gaussian -log L at the optimum
   // 2 nll + 2 k and 2 nll + k ln n (docs/physics.md §9.4), k = num_free (the fitted law
   // parameters and the trajectory's nuisances) + 1 for the scatter when it is estimated.

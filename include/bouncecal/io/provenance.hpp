@@ -15,7 +15,7 @@ namespace bouncecal {
 
 struct InputFile {
   std::string path;
-  std::string sha256;  // lowercase hex
+  std::string sha256;  // lowercase hex; "" for standard input ("-")
 };
 
 struct Provenance {
@@ -35,7 +35,9 @@ std::string IsoDateUtc(std::time_t t);
 std::string NowIsoDateUtc();
 // The library version (CMake project version).
 std::string BouncecalVersion();
-// Checksums of every input plus version and current date.
+// Checksums of every input plus version and current date. Standard input ("-"), read once by
+// the reader, is not checksummed: its sha256 is "".
+inline constexpr const char* kStandardInput = "-";
 Provenance MakeProvenance(const std::vector<std::string>& input_paths);
 
 }  // namespace bouncecal

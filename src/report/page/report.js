@@ -277,7 +277,8 @@
     if (!warnings.length) return el('p', { class: 'hint', text: 'No warnings.' });
     return el('ul', { class: 'warnings' }, warnings.map((w) => el('li', {}, [
       el('code', { text: w.code }), ' ' + w.message +
-      (w.time_s !== null ? ' (t = ' + fmt(w.time_s, 7) + ' s)' : '')])));
+      (w.time_s !== undefined && w.time_s !== null ? ' (t = ' + fmt(w.time_s, 7) + ' s)' : ''),
+      ...(w.hint ? [el('br'), el('span', { class: 'next-step', text: 'Next: ' + w.hint })] : [])])));
   }
   function parameterTable(fit) {
     const names = Object.keys(fit.law.parameters);
@@ -295,9 +296,11 @@
       [[f.strategy, f.outcome, rms, fmt(f.chi2_dof, 4), String(f.dof), fmt(f.aic, 6), fmt(f.bic, 6), String(f.iterations)]], 2);
   }
   function lawTable() {
-    return table(['rank', 'law', 'outcome', 'ΔAIC', 'χ²/dof', 'rms residual'], data.law_comparison.map((r) => [
-      String(r.rank), r.law.name, r.outcome, fmt(r.delta_aic, 4), fmt(r.chi2_dof, 4),
-      r.rms_residual === null ? r.message : fmt(r.rms_residual, 4) + ' ' + r.residual_unit]), 3);
+    return table(['rank', 'law', 'outcome', 'ΔAIC', 'χ²/dof', 'rms residual', 'why not ranked; next step'],
+      data.law_comparison.map((r) => [
+        String(r.rank), r.law.name, r.outcome, fmt(r.delta_aic, 4), fmt(r.chi2_dof, 4),
+        r.rms_residual === null ? r.message : fmt(r.rms_residual, 4) + ' ' + r.residual_unit,
+        r.outcome === 'converged' ? '' : r.reason + (r.hint ? ' — Next: ' + r.hint : '')]), 3);
   }
   function energyTable(e) {
     const rows = [['initial (potential + kinetic)', e.initial_j], ['final mechanical', e.final_mechanical_j],
@@ -359,7 +362,14 @@
     if (data.fit_failure !== null) fitSec.appendChild(el('p', { class: 'alert bad', text: 'No fit: ' + data.fit_failure }));
     if (data.fit) {
       if (data.fit.fit.outcome !== 'converged') {
-        fitSec.appendChild(el('p', { class: 'alert', text: 'Fit outcome ' + data.fit.fit.outcome + ': ' + data.fit.fit.message }));
+        fitSec.appendChild(el('p', { class: 'alert', id: 'fit-outcome', text: 'Fit outcome ' + data.fit.fit.outcome + ': ' + data.fit.fit.reason }));
+      }
+      if (data.fit.fit.hint) {
+        fitSec.appendChild(el('p', { class: 'next-step', id: 'fit-hint', text: 'Next: ' + data.fit.fit.hint }));
+      }
+      if (data.fit.warnings.length) {
+        fitSec.appendChild(el('h3', { text: 'Fit warnings' }));
+        fitSec.appendChild(warningsList(data.fit.warnings));
       }
       fitSec.appendChild(el('p', {}, [el('b', { text: data.fit.law.name + ': ' }), data.fit.law.formula]));
       fitSec.appendChild(parameterTable(data.fit));

@@ -340,7 +340,8 @@ std::string CheckQuietMember(const PlausibilityOptions& o) {
     RemoveQuietEarlierMembers(&s, o, "test");
     const bool removed = s.removed.size() == 1 && s.impacts.size() == 9;
     if (removed != (below > 20.0))
-      why += std::to_string(below) + " dB below: " + std::to_string(s.removed.size()) + " removed\n";
+      why +=
+          std::to_string(below) + " dB below: " + std::to_string(s.removed.size()) + " removed\n";
   }
   return why;
 }
@@ -381,7 +382,8 @@ std::string CheckMeanRatio(const PlausibilityOptions& o) {
   for (const double e : {0.992, 0.997}) {
     std::vector<Sequence> seqs{Geometric(1.0, 0.2, e, 40, 0.5)};
     const auto w = EnforcePlausibility(&seqs, o);
-    if (seqs.empty() != (e > 0.995)) why += "ratio " + std::to_string(e) + ": kept " + std::to_string(seqs.size()) + "\n";
+    if (seqs.empty() != (e > 0.995))
+      why += "ratio " + std::to_string(e) + ": kept " + std::to_string(seqs.size()) + "\n";
   }
   return why;
 }

@@ -45,14 +45,17 @@ std::vector<double> Chain(double t0, double d0, const std::vector<double>& ratio
   return t;
 }
 
-std::vector<double> Repeat(double r, int n) { return std::vector<double>(static_cast<std::size_t>(n), r); }
+std::vector<double> Repeat(double r, int n) {
+  return std::vector<double>(static_cast<std::size_t>(n), r);
+}
 
 std::vector<double> Join(std::vector<double> a, const std::vector<double>& b) {
   a.insert(a.end(), b.begin(), b.end());
   return a;
 }
 
-std::vector<Impact> Cands(const std::vector<double>& t, double snr_db = 30.0, double sigma_s = 1e-6) {
+std::vector<Impact> Cands(const std::vector<double>& t, double snr_db = 30.0,
+                          double sigma_s = 1e-6) {
   std::vector<Impact> c;
   for (double x : t) c.push_back(Cand(x, snr_db, 0.8, sigma_s));
   return c;
@@ -128,8 +131,9 @@ void ExpectPinned(const Check& check, double TrackOptions::*field, const char* n
 // (a factor 1.4 above the limit), the second is not (1.4 below): the sequence ends with the
 // 4.2-ms flight, the 2.1-ms candidates after it are not members.
 std::string CheckResolvable(const TrackOptions& o) {
-  const std::vector<double> t = Chain(1.0, 0.27, Repeat(0.5, 8));  // last intervals 4.2, 2.1, 1.05 ms
-  const std::vector<double> want(t.begin(), t.begin() + 8);         // up to the 4.2-ms flight
+  const std::vector<double> t =
+      Chain(1.0, 0.27, Repeat(0.5, 8));                      // last intervals 4.2, 2.1, 1.05 ms
+  const std::vector<double> want(t.begin(), t.begin() + 8);  // up to the 4.2-ms flight
   const auto seqs = TrackSequences(Cands(t), 5.0, o);
   return Whole(seqs, want) ? "" : "not the impacts up to the 4.2-ms flight: " + Describe(seqs);
 }
@@ -149,29 +153,30 @@ std::string CheckLongestFlight(const TrackOptions& o) {
   const std::vector<double> taller = Chain(1.0, 4.2, Repeat(0.8, 14));
   seqs = TrackSequences(Cands(taller), 40.0, o);
   const std::vector<double> from_third(taller.begin() + 2, taller.end());
-  if (!Whole(seqs, from_third)) why += "4.2-s first flight: not from the third impact: " + Describe(seqs);
+  if (!Whole(seqs, from_third))
+    why += "4.2-s first flight: not from the third impact: " + Describe(seqs);
   return why;
 }
 TEST(TrackerRules, AFirstFlightLongerThanThreeSecondsIsNotADropStart) {
   ExpectPinned(CheckLongestFlight, &TrackOptions::max_interval_s, "max_interval_s");
 }
 
-
 // --- the bound e <= 1 and its timing slack -----------------------------------------------------
 
 // A ratio of intervals above 1 is no bounce (e <= 1), except within the timing noise: the first
-// ratio may reach 1 + 3 sigma, sigma = sqrt(2) sigma_t / d of the two onsets' timing (TrackOptions::
-// max_ratio). Onsets timed to 2 ms on 100-ms flights: sigma = 0.028, the bound 1.085. A first
-// ratio of 1.05 (1.8 sigma above 1, inside the 1.5-sigma bound too) keeps the drop's first impact
-// (one sequence, ratios 0.9 after it); 1.12 (4.2 sigma, inside the 6-sigma bound) does not: the
-// sequence starts at the second impact.
+// ratio may reach 1 + 3 sigma, sigma = sqrt(2) sigma_t / d of the two onsets' timing
+// (TrackOptions:: max_ratio). Onsets timed to 2 ms on 100-ms flights: sigma = 0.028, the
+// bound 1.085. A first ratio of 1.05 (1.8 sigma above 1, inside the 1.5-sigma bound too) keeps the
+// drop's first impact (one sequence, ratios 0.9 after it); 1.12 (4.2 sigma, inside the 6-sigma
+// bound) does not: the sequence starts at the second impact.
 std::string CheckFirstRatioSlack(const TrackOptions& o) {
   std::string why;
   for (const double r1 : {1.05, 1.12}) {
     const std::vector<double> t = Chain(1.0, 0.1, Join({r1}, Repeat(0.9, 8)));
     const auto seqs = TrackSequences(Cands(t, 30.0, 0.002), 5.0, o);
     const bool first_in = SequenceOf(seqs, t[0]) >= 0 && Together(seqs, t[0], t.back());
-    if (first_in != (r1 < 1.085)) why += "first ratio " + std::to_string(r1) + ": " + Describe(seqs) + "\n";
+    if (first_in != (r1 < 1.085))
+      why += "first ratio " + std::to_string(r1) + ": " + Describe(seqs) + "\n";
   }
   return why;
 }
@@ -191,7 +196,8 @@ std::string CheckLaterRatioSlack(const TrackOptions& o) {
   for (const double r2 : {1.10, 1.22}) {
     const std::vector<double> t = Chain(1.0, 0.1, Join({0.97, r2}, Repeat(0.9, 8)));
     const auto seqs = TrackSequences(Cands(t, 30.0, 0.002), 5.0, o);
-    const bool ok = r2 < 1.145 ? Whole(seqs, t) : !(Together(seqs, t[1], t[2]) && Together(seqs, t[2], t[3]));
+    const bool ok =
+        r2 < 1.145 ? Whole(seqs, t) : !(Together(seqs, t[1], t[2]) && Together(seqs, t[2], t[3]));
     if (!ok) why += "ratio " + std::to_string(r2) + ": " + Describe(seqs) + "\n";
   }
   return why;
@@ -215,11 +221,12 @@ TEST(TrackerRules, ALaterRatioAboveOneOnlyWithinTheTimingNoise) {
 std::string CheckFourthImpactWindow(const TrackOptions& o) {
   std::string why;
   for (const double jump : {0.085, 0.14}) {
-    const std::vector<double> t = Chain(1.0, 0.3, Join({0.8, 0.8 * std::exp(-jump)}, Repeat(0.8, 8)));
+    const std::vector<double> t =
+        Chain(1.0, 0.3, Join({0.8, 0.8 * std::exp(-jump)}, Repeat(0.8, 8)));
     const auto seqs = TrackSequences(Cands(t), 6.0, o);
-    const bool ok = jump < 0.12 ? Whole(seqs, t) : !(Together(seqs, t[1], t[2]) && Together(seqs, t[2], t[3]));
-    if (!ok)
-      why += "log jump " + std::to_string(jump) + ": " + Describe(seqs) + "\n";
+    const bool ok =
+        jump < 0.12 ? Whole(seqs, t) : !(Together(seqs, t[1], t[2]) && Together(seqs, t[2], t[3]));
+    if (!ok) why += "log jump " + std::to_string(jump) + ": " + Describe(seqs) + "\n";
   }
   return why;
 }
@@ -260,8 +267,8 @@ std::string CheckSharpenedWindow(const TrackOptions& o, int member) {
     const bool regular = Whole(seqs, t) && seqs[0].irregular_after.empty();
     const bool flagged = Whole(seqs, t) && seqs[0].irregular_after == std::vector<int>{member - 1};
     if (at < 1.0 ? !regular : !flagged)
-      why += "member " + std::to_string(member) + ", " + std::to_string(at) + " of the window: " +
-             Describe(seqs) + "\n";
+      why += "member " + std::to_string(member) + ", " + std::to_string(at) +
+             " of the window: " + Describe(seqs) + "\n";
   }
   return why;
 }
@@ -331,7 +338,8 @@ IrregularOutcome Irregular(const TrackOptions& o, double trend, double ratio, in
   const auto seqs = TrackSequences(Cands(t), t.back() + 1.0, o);
   IrregularOutcome out;
   out.flagged = Whole(seqs, t) && seqs[0].irregular_after == std::vector<int>{at};
-  out.split = !Together(seqs, t[static_cast<std::size_t>(at - 1)], t[static_cast<std::size_t>(at + 1)]);
+  out.split =
+      !Together(seqs, t[static_cast<std::size_t>(at - 1)], t[static_cast<std::size_t>(at + 1)]);
   out.text = Describe(seqs);
   return out;
 }
@@ -397,7 +405,8 @@ std::string CheckLevelRise(const TrackOptions& o) {
     c[6] = Cand(t[6], 10.0 + rise);
     const auto seqs = TrackSequences(c, t.back() + 1.0, o);
     const bool member = Together(seqs, t[5], t[6]);
-    if (member != (rise < 20.0)) why += std::to_string(rise) + " dB louder: " + Describe(seqs) + "\n";
+    if (member != (rise < 20.0))
+      why += std::to_string(rise) + " dB louder: " + Describe(seqs) + "\n";
   }
   return why;
 }
@@ -420,7 +429,8 @@ std::string CheckQuietLastImpact(const TrackOptions& o) {
     c.back() = Cand(t.back(), 40.0 - drop);
     const auto seqs = TrackSequences(c, t.back() + 0.002, o);
     const bool member = Together(seqs, t[t.size() - 2], t.back());
-    if (member != (drop < 32.6)) why += std::to_string(drop) + " dB quieter: " + Describe(seqs) + "\n";
+    if (member != (drop < 32.6))
+      why += std::to_string(drop) + " dB quieter: " + Describe(seqs) + "\n";
   }
   return why;
 }
@@ -604,7 +614,8 @@ std::string CheckDropHeight(const TrackOptions& o) {
     for (double d = d0; d >= 0.003; d *= 0.8) t.push_back(t.back() + d);
     const auto seqs = TrackSequences(Cands(t), 5.0, o);
     bool neighbours = false;
-    for (std::size_t k = 0; k + 1 < t.size(); ++k) neighbours = neighbours || Together(seqs, t[k], t[k + 1]);
+    for (std::size_t k = 0; k + 1 < t.size(); ++k)
+      neighbours = neighbours || Together(seqs, t[k], t[k + 1]);
     const bool ok = h > 1e-3 ? Whole(seqs, t) : !neighbours;
     if (!ok) why += "h = " + std::to_string(h * 1e3) + " mm: " + Describe(seqs) + "\n";
   }

@@ -396,6 +396,23 @@ TEST(PlausibilityRules, IntervalsShrinkByAtLeastHalfAPercentABounce) {
   EXPECT_NE(CheckMeanRatio(loose), "");
 }
 
+// An untimed member near the end of a sequence is removed; the members after it are kept only
+// when they still form an interval of their own: a single impact left past the gap has no
+// flight of its own to measure (its interval spans the removed impact) and goes with it; two
+// impacts past the gap keep their flight between them and stay.
+TEST(PlausibilityRules, AnImpactLeftAlonePastAnUntimedMemberGoesWithIt) {
+  for (const std::size_t after : {1u, 2u, 3u}) {
+    Sequence s = Geometric(1.0, 0.4, 0.9, 10, 0.5);
+    const std::size_t k = s.impacts.size() - 1 - after;
+    s.impacts[k].sigma_s = 0.5 * (s.impacts[k + 1].time_s - s.impacts[k].time_s);
+    const std::vector<Warning> w = RemoveUntimedMembers(&s, PlausibilityOptions{}, "test");
+    const std::size_t removed = after == 1 ? 2 : 1;
+    EXPECT_EQ(s.impacts.size(), 10 - removed) << after << " member(s) after the untimed one";
+    EXPECT_EQ(s.removed.size(), removed) << after << " member(s) after the untimed one";
+    ASSERT_FALSE(w.empty());
+  }
+}
+
 TEST(PlausibilityStages, OptionsValidation) {
   PlausibilityOptions o;
   std::string why;

@@ -129,7 +129,10 @@ INSTANTIATE_TEST_SUITE_P(Verdicts, ConstantE,
 TEST(Verdicts, AShapeNoConstantELawHasIsPoorFitWithTheSpeedDependentLawsNamed) {
   ScratchDir dir("bc_verdict");
   const Fitted f =
-      RenderAndFit(dir, kSuperballScene, "--preset rubber-wood --truth-from law --scatter-e 0.003",
+      // The steel-copper sound: the tracker finds 0-5 impacts of this scene in rubber-wood's
+      // ringing (seeds 11-13; the old greedy tracker 11-12), a detection weakness the
+      // scoreboard's rubber-wood rows show too, not what this test is about.
+      RenderAndFit(dir, kSuperballScene, "--preset steel-copper --truth-from law --scatter-e 0.003",
                    "--law walton-braun");
   const json& fit = f.params.at("fit");
   EXPECT_EQ(f.run.exit_code, 14) << f.run.err;

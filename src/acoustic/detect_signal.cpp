@@ -187,60 +187,26 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
 // kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, the
 // others as unheard impacts (missed_after). It stops where no run is significant: the noise won
 // or the ball stopped. Returns whether the sequence grew.
-// The last single flight of q when the next is predicted at ratio r: its last interval, or, when
-// that interval spans unheard impacts (missed_after), the last of the k flights that best fill it
-// after the interval before it.
-double LastFlight(const Sequence& q, double r) {
-  const auto& t = q.impacts;
-  const std::size_t m = t.size();
-  const double gap = t[m - 1].time_s - t[m - 2].time_s;
-  const auto flagged = [&](std::size_t j) {
-    return std::find(q.missed_after.begin(), q.missed_after.end(), static_cast<int>(j)) !=
-           q.missed_after.end();
-  };
-  if (!flagged(m - 2)) return gap;
-  if (m < 3 || flagged(m - 3)) return gap * r / (1.0 + r);
-  const double before = t[m - 2].time_s - t[m - 3].time_s;
-  double best = gap, best_miss = 1e300, sum = 0.0, p = 1.0;
-  for (int k = 1; k <= 5; ++k) {
-    sum += (p *= r);
-    const double miss = std::fabs(std::log(gap / (before * sum)));
-    if (miss < best_miss) best_miss = miss, best = before * p;
-  }
-  return best;
-}
-
-// The tail: up to max_missed + 1 looks ahead at the trend's predictions (each from the match of
-// the look before when it is better than noise's), as long as the interval stays resolvable and
-// inside [.., limit_s). The longest run of looks that noise alone explains with probability below
-// kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, the
-// others as unheard impacts (missed_after). It stops where no run is significant: the noise won
-// or the ball stopped. Returns whether the sequence grew.
 bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double limit_s,
                 const TrackOptions& to, Sequence* q) {
   bool extended = false;
-  if (q->impacts.size() < 3) return false;
-  // The last member and its single flight (after unheard impacts: the last of them).
-  double t_last = q->impacts.back().time_s;
-  double d_last = LastFlight(*q, std::exp(TrendAt(*q, q->impacts.size()).log_r));
-  for (;;) {
+  while (q->impacts.size() >= 3) {
     const RatioTrend trend = TrendAt(*q, q->impacts.size());
+    double t = q->impacts.back().time_s;
+    double d = t - q->impacts[q->impacts.size() - 2].time_s;
+    const double spread = trend.spread;
     std::vector<Look> looks;
-    std::vector<double> at, flight;  // each look's time (match or prediction) and flight
-    double t = t_last, d = d_last;
     for (int j = 0; j <= to.max_missed; ++j) {
       const double r =
           std::clamp(std::exp(trend.log_r + trend.slope * j), to.min_ratio, to.max_ratio);
       const double dn = d * r;
       if (dn < to.min_interval_s || t + dn > limit_s) break;
       looks.push_back(LookAt(onsets, x, t + dn, dn,
-                             trend.spread * std::sqrt(1.0 + static_cast<double>(looks.size()))));
+                             spread * std::sqrt(1.0 + static_cast<double>(looks.size()))));
       const Look& l = looks.back();
       const double next = l.any && l.p <= kGuidedMemberP ? l.match.time_s : t + dn;
       d = next - t;
       t = next;
-      at.push_back(t);
-      flight.push_back(d);
     }
     // The run whose Fisher combination is the least probable under noise alone.
     std::size_t best_n = 0;
@@ -254,24 +220,22 @@ bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double l
     }
     if (best_n == 0 || best_p > kGuidedFalseAlarm) break;
     bool unheard = false, grew = false;
-    double before = d_last;  // the single flight before the next look
     for (std::size_t n = 0; n < best_n; ++n) {
       if (!looks[n].any || looks[n].p > kGuidedMemberP) {
         unheard = true;
-        before = flight[n];
         continue;
       }
-      // The flight must not be longer than the one before beyond the timing noise (e <= 1,
-      // TrackOptions::max_ratio): a match past it is not the next bounce.
+      // Right after a member, the flight must not be longer than the one before beyond the
+      // timing noise (e <= 1, TrackOptions::max_ratio): a match past it is not the next bounce.
       const Impact& f = looks[n].match;
-      if (flight[n] / before >
-          to.max_ratio + 3.0 * std::hypot(f.sigma_s, q->impacts.back().sigma_s) / before)
+      const std::size_t m = q->impacts.size();
+      const double before = q->impacts[m - 1].time_s - q->impacts[m - 2].time_s;
+      if (!unheard &&
+          (f.time_s - q->impacts[m - 1].time_s) / before >
+              to.max_ratio + 3.0 * std::hypot(f.sigma_s, q->impacts[m - 1].sigma_s) / before)
         break;
-      if (unheard) q->missed_after.push_back(static_cast<int>(q->impacts.size()) - 1);
+      if (unheard) q->missed_after.push_back(static_cast<int>(m) - 1);
       q->impacts.push_back(f);
-      t_last = at[n];
-      d_last = flight[n];
-      before = flight[n];
       unheard = false;
       grew = true;
     }

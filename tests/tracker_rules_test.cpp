@@ -572,9 +572,10 @@ TEST(TrackerRules, ASequenceThatEndsEarlyPaysForItsUnheardNextImpact) {
 // spread over +-max_irregular_log_jump in log r: the candidate joins when value - log(2 * 0.4 *
 // d) - log rho(t) > 3. A ball of e = 0.85 (30 dB, 10 bounces) whose last candidate comes 0.3 in
 // log r early; the file ends before the predicted next impact (no end penalty either way). Its
-// SNR is set where the step's score crosses zero (with a 20-dB rise, weight term rise / 40 = 0.5),
-// +-4 dB: below, the sequence ends before it; above, it is an irregular member. (The rise's term
-// doubled or halved moves the crossing by 5 dB.)
+// SNR is set where the step's score crosses zero, +-4 dB: below, the sequence ends before it;
+// above, it is an irregular member. Its rise is 20 dB (weight term rise / 40 = 0.5: the term
+// doubled or halved moves the crossing by 5 dB) or 40 dB (the term at its cap 0.75: the cap
+// doubled or halved moves it by 5 or 7.5 dB).
 TEST(TrackerRules, AnIrregularStepIsTakenWhenItsEvidenceBeatsItsPriorOdds) {
   std::vector<double> t = Chain(1.0, 0.5, Repeat(0.85, 9));
   const double d = t.back() - t[t.size() - 2], d_hat = 0.85 * d, d1 = d_hat * std::exp(-0.3);
@@ -582,21 +583,25 @@ TEST(TrackerRules, AnIrregularStepIsTakenWhenItsEvidenceBeatsItsPriorOdds) {
   const double duration = t[t.size() - 2] + 0.999 * d_hat;
   int near = 0;
   for (double x : t) near += std::fabs(x - t.back()) <= 0.5;
-  // weight - 1 - log(0.8 d1) - log rho - 3 = 0, weight = 0.5 + snr / 20 + 0.4 + 0.5.
-  const double snr = 20.0 * (1.0 + 3.0 + std::log(0.8 * d1) + std::log(near) - 0.5 - 0.4 - 0.5);
-  ASSERT_GT(snr, 10.0);
-  ASSERT_LT(snr, 35.0);
-  for (const double delta : {-4.0, 4.0}) {
-    std::vector<Impact> c = Cands(t);
-    c.back() = Cand(t.back(), snr + delta);
-    c.back().rise_db = 20.0;
-    const auto seqs = TrackSequences(c, duration, TrackOptions{});
-    const std::vector<double> before(t.begin(), t.end() - 1);
-    if (delta < 0.0) {
-      EXPECT_TRUE(Whole(seqs, before)) << snr + delta << " dB: " << Describe(seqs);
-    } else {
-      ASSERT_TRUE(Whole(seqs, t)) << snr + delta << " dB: " << Describe(seqs);
-      EXPECT_EQ(seqs[0].irregular_after, std::vector<int>{static_cast<int>(t.size()) - 2});
+  for (const double rise : {20.0, 40.0}) {
+    // weight - 1 - log(0.8 d1) - log rho - 3 = 0, weight = 0.5 + snr / 20 + 0.4 + min(rise / 40,
+    // 0.75).
+    const double snr = 20.0 * (1.0 + 3.0 + std::log(0.8 * d1) + std::log(near) - 0.5 - 0.4 -
+                               std::min(rise / 40.0, 0.75));
+    ASSERT_GT(snr, 10.0);
+    ASSERT_LT(snr, 35.0);
+    for (const double delta : {-4.0, 4.0}) {
+      std::vector<Impact> c = Cands(t);
+      c.back() = Cand(t.back(), snr + delta);
+      c.back().rise_db = rise;
+      const auto seqs = TrackSequences(c, duration, TrackOptions{});
+      const std::vector<double> before(t.begin(), t.end() - 1);
+      if (delta < 0.0) {
+        EXPECT_TRUE(Whole(seqs, before)) << snr + delta << " dB: " << Describe(seqs);
+      } else {
+        ASSERT_TRUE(Whole(seqs, t)) << snr + delta << " dB: " << Describe(seqs);
+        EXPECT_EQ(seqs[0].irregular_after, std::vector<int>{static_cast<int>(t.size()) - 2});
+      }
     }
   }
 }

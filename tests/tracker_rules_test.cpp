@@ -385,12 +385,19 @@ TEST(TrackerRules, AnIrregularStepAtMostPointFourFromTheTrend) {
 // An irregular step needs at least three regular ratios before it (the pattern must be known
 // before it can be broken): after the first ratio and two more (three regular ratios, at flight
 // 4) a flight 1.05 times the one before is flagged; after the first ratio and one more (flight 3)
-// it is not a member of the sequence (a requirement of 2 or 6 regular ratios moves one case).
+// it is not a member of the sequence (a requirement of 6 regular ratios moves the first case).
+// A step that the window holds at flight 3 already (a lively ball, e = 0.97, then a flight 1.02
+// times the one before: above e <= 1, near the trend) is flagged at flight 4 and not at flight 3
+// (a requirement of 2 moves it).
 TEST(TrackerRules, AnIrregularStepNeedsThreeRegularOnesBefore) {
   const IrregularOutcome in = Irregular(TrackOptions{}, 0.85, 1.05, 4);
   EXPECT_TRUE(in.flagged) << in.text;
   const IrregularOutcome out = Irregular(TrackOptions{}, 0.85, 1.05, 3);
   EXPECT_TRUE(out.split) << out.text;
+  const IrregularOutcome in2 = Irregular(TrackOptions{}, 0.97, 1.02, 4);
+  EXPECT_TRUE(in2.flagged) << in2.text;
+  const IrregularOutcome out2 = Irregular(TrackOptions{}, 0.97, 1.02, 3);
+  EXPECT_FALSE(out2.flagged) << out2.text;
 }
 
 // --- levels ------------------------------------------------------------------------------------

@@ -78,7 +78,7 @@ TEST(CalibrateCli, HumanReportRecoversTheTrueA) {
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* want :
        {"law hertz-viscoelastic, restitution fit", "outcome: converged",
-        "scatter of e from bounce to bounce: 0", "determined by the sound: A",
+        "scatter of e from bounce to bounce: ", "determined by the sound: A",
         "e(v) over the measured speeds", "assumed (not given): law.parameters.k"}) {
     EXPECT_NE(r.out.find(want), std::string::npos) << want << "\n" << r.out;
   }
@@ -103,8 +103,15 @@ TEST(CalibrateCli, JsonIsTheParameterFileObjectAndOutputRules) {
               1e-4 * TrueA());
   EXPECT_EQ(j.at("fit").at("outcome"), "converged");
   EXPECT_EQ(j.at("fit").at("exit_code"), 0);
-  EXPECT_EQ(j.at("fit").at("scatter_e"), 0.0);
-  EXPECT_TRUE(j.at("fit").at("scatter_e_is_upper_limit").get<bool>());
+  // The recording is rendered from the law without bounce-to-bounce scatter: the fitted scatter
+  // is zero or consistent with it, within two of its sigmas. (Measured 6.2e-7 +- 4.9e-7: the
+  // timing sigma is for intervals and leaves out the level-dependent Hertz drift, 1e-7-1e-6 of e,
+  // include/bouncecal/acoustic/timing.hpp; chi2/dof 0.76, was 0.02 with the former sigma.)
+  const double scatter = j.at("fit").at("scatter_e").get<double>();
+  if (!j.at("fit").at("scatter_e_is_upper_limit").get<bool>()) {
+    EXPECT_LT(scatter, 2.0 * j.at("fit").at("scatter_e_sigma").get<double>());
+  }
+  EXPECT_LT(scatter, 1e-5);
   EXPECT_TRUE(j.at("warnings").is_array());
   EXPECT_TRUE(j.at("warnings").empty()) << j.at("warnings");
   std::vector<std::string> assumed;

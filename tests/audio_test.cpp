@@ -26,16 +26,9 @@ namespace fs = std::filesystem;
 
 class AudioTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("bouncecal_audio_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  fs::path dir_;
+  std::string Path(const std::string& name) const { return scratch_ / name; }
+  testing_util::ScratchDir scratch_{"bc_audio"};
+  const fs::path& dir_ = scratch_.path();
 };
 
 // Distinct, deterministic content per channel (catches interleaving mistakes).

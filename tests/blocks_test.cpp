@@ -149,7 +149,7 @@ const Impact* Nearest(const Sequence& q, double t) {
 double ClearImpactsAgree(const DetectionResult& from, const DetectionResult& in) {
   // Below ~3 dB an impact is at the noise level: whether it joins the tail, and where a noise
   // peak moves its time, depends on the signal around it (the whitening fit, the block's
-  // template), as it does for a recording started elsewhere (README: start invariance).
+  // template), as it does for a recording started elsewhere (docs/benchmarks.md: start invariance).
   constexpr double kClearSnrDb = 3.0;
   double worst = 0.0;
   for (const Sequence& w : from.sequences) {

@@ -17,6 +17,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "test_util.hpp"
+
 namespace {
 namespace fs = std::filesystem;
 
@@ -26,9 +28,9 @@ struct CliRun {
 };
 
 CliRun Exec(const std::string& args) {
-  std::random_device rd;
-  const fs::path err_path = fs::temp_directory_path() / ("bc_cli_err_" + std::to_string(rd()));
-  const std::string cmd = std::string(BOUNCECAL_BINARY) + " " + args + " 2>" + err_path.string();
+  const bouncecal::testing_util::ScratchDir scratch("bc_cli_err");
+  const std::string err_path = scratch / "stderr";
+  const std::string cmd = std::string(BOUNCECAL_BINARY) + " " + args + " 2>" + err_path;
   CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -41,7 +43,6 @@ CliRun Exec(const std::string& args) {
   std::stringstream ss;
   ss << e.rdbuf();
   r.err = ss.str();
-  fs::remove(err_path);
   return r;
 }
 
@@ -49,19 +50,7 @@ const std::string kData = std::string(BOUNCECAL_SOURCE_DIR) + "/data/";
 const std::string kRecording = kData + "default_steel_copper.flac";
 const std::string kScene = kData + "default_steel_copper.toml";
 
-class TempDir {
- public:
-  TempDir() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("bc_cli_" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string operator/(const std::string& n) const { return (path_ / n).string(); }
-
- private:
-  fs::path path_;
-};
+using TempDir = bouncecal::testing_util::ScratchDir;
 
 int Lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
@@ -78,7 +67,7 @@ TEST(CalibrateCli, HumanReportRecoversTheTrueA) {
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* want :
        {"law hertz-viscoelastic, restitution fit", "outcome: converged",
-        "scatter of e from bounce to bounce: 0", "determined by the sound: A",
+        "scatter of e from bounce to bounce: ", "determined by the sound: A",
         "e(v) over the measured speeds", "assumed (not given): law.parameters.k"}) {
     EXPECT_NE(r.out.find(want), std::string::npos) << want << "\n" << r.out;
   }
@@ -103,8 +92,15 @@ TEST(CalibrateCli, JsonIsTheParameterFileObjectAndOutputRules) {
               1e-4 * TrueA());
   EXPECT_EQ(j.at("fit").at("outcome"), "converged");
   EXPECT_EQ(j.at("fit").at("exit_code"), 0);
-  EXPECT_EQ(j.at("fit").at("scatter_e"), 0.0);
-  EXPECT_TRUE(j.at("fit").at("scatter_e_is_upper_limit").get<bool>());
+  // The recording is rendered from the law without bounce-to-bounce scatter: the fitted scatter
+  // is zero or consistent with it, within two of its sigmas. (Measured 6.2e-7 +- 4.9e-7: the
+  // timing sigma is for intervals and leaves out the level-dependent Hertz drift, 1e-7-1e-6 of e,
+  // include/bouncecal/acoustic/timing.hpp; chi2/dof 0.76, was 0.02 with the former sigma.)
+  const double scatter = j.at("fit").at("scatter_e").get<double>();
+  if (!j.at("fit").at("scatter_e_is_upper_limit").get<bool>()) {
+    EXPECT_LT(scatter, 2.0 * j.at("fit").at("scatter_e_sigma").get<double>());
+  }
+  EXPECT_LT(scatter, 1e-5);
   EXPECT_TRUE(j.at("warnings").is_array());
   EXPECT_TRUE(j.at("warnings").empty()) << j.at("warnings");
   std::vector<std::string> assumed;

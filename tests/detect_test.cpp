@@ -202,12 +202,8 @@ const nlohmann::json& ChosenImpacts(const nlohmann::json& d) {
 
 class DetectCli : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("detect_cli_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  testing_util::ScratchDir scratch_{"bc_detect_cli"};
+  const fs::path& dir_ = scratch_.path();
 };
 
 TEST_F(DetectCli, JsonCsvAndTable) {

@@ -10,7 +10,7 @@
 //     error when the mapping is an approximation (the mapping error must then be <= 0.01);
 //   - intervals between impacts within 0.1 %.
 // A simulator missing from PATH FAILS the case with the install command; nothing is skipped.
-// Every case writes one Markdown row to build/integration/LAW_TARGET.md; the README's law x
+// Every case writes one Markdown row to build/integration/LAW_TARGET.md; the docs/export.md law x
 // simulator table is `tools/integration_table.sh` over those rows.
 #include <gtest/gtest.h>
 
@@ -120,8 +120,8 @@ void RequireSimulator(const std::string& target) {
 
 // Exports `params` (a converged fit of `law`) to `target` in dir/deck, runs it, and compares the
 // simulator's first three impacts with `bouncecal simulate --params` of the same file; writes
-// the README table's row, `label` in its first column, as build/integration/ROW.md. Returns the
-// mapping (export --json).
+// the docs/export.md table's row, `label` in its first column, as build/integration/ROW.md. Returns
+// the mapping (export --json).
 json ExportRunAndCompare(const ScratchDir& dir, const std::string& params, const std::string& law,
                          const std::string& target, const std::string& row_name,
                          const std::string& label, std::chrono::steady_clock::time_point start) {
@@ -206,7 +206,7 @@ json ExportRunAndCompare(const ScratchDir& dir, const std::string& params, const
     }
   }
 
-  // One row of the README's law x simulator table.
+  // One row of the law x simulator table of docs/export.md.
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::filesystem::create_directories(std::string(BOUNCECAL_BUILD_DIR) + "/integration");
@@ -256,7 +256,7 @@ TEST_P(ExportRun, SimulatorBouncesLikeTheFit) {
 // (calibrate_verdict_test.cpp: the same recordings, their verdicts), and a glass marble.
 struct ConstantECase {
   std::string name;    // row name
-  std::string label;   // the README table's first column
+  std::string label;   // the docs/export.md table's first column
   std::string preset;  // synth preset (render settings)
   std::string scene;   // scene file text: ball, surface, drop, effects, law
   std::string law;

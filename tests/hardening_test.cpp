@@ -3,7 +3,7 @@
 // refused with the documented code and a message naming the input, echoed user strings cut,
 // empty output paths refused, output-size limits checked before the work, and third-party
 // libraries kept quiet. Every failing command is checked for its documented exit code
-// (README "Exit codes") and for a message naming the input.
+// (docs/cli.md "Exit codes") and for a message naming the input.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -339,7 +339,7 @@ TEST(ThirdPartyLogging, FailedFitPrintsOnlyOurLines) {
   const CommandResult r = Cli("calibrate " + kRecording + " --scene " + kScene +
                               " --law expression --expression 'k*d^1.5*(1+alpha*v)+log(alpha-0.3)'"
                               " --set k=7.9e9 --set alpha=0.3");
-  // A fit outcome other than converged (README: 10 failed, 13-15): measured 14 (poor_fit).
+  // A fit outcome other than converged (docs/cli.md: 10 failed, 13-15): measured 14 (poor_fit).
   EXPECT_TRUE(r.exit_code == 10 || (r.exit_code >= 13 && r.exit_code <= 15)) << r.err;
   EXPECT_NE(r.err.find("calibrate: outcome"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("InitGoogleLogging"), std::string::npos) << r.err;

@@ -13,30 +13,19 @@
 #include "bouncecal/io/provenance.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-class TempDir {
+class TempDir : public testing_util::ScratchDir {
  public:
-  TempDir() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("bouncecal_param_" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+  TempDir() : ScratchDir("bc_param") {}
   size_t Count() const {
-    return static_cast<size_t>(std::distance(fs::directory_iterator(path_), {}));
+    return static_cast<size_t>(std::distance(fs::directory_iterator(path()), {}));
   }
-
- private:
-  fs::path path_;
 };
 
 void WriteText(const std::string& path, const std::string& text) {

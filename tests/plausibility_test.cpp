@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -270,6 +271,146 @@ TEST(PlausibilityStages, MetronomeAndQuietSequence) {
   EXPECT_NEAR(seqs[0].impacts.front().time_s, 3.1, 1e-12);
   EXPECT_TRUE(HasWarning(w, "not_shrinking"));
   EXPECT_TRUE(HasWarning(w, "phantom_removed"));
+}
+
+// --- each rule within a factor of 2 (issue 29) ------------------------------------------------
+// Each test puts one case just inside the rule and one just outside it, and checks that with the
+// option doubled and halved one of them crosses (tools/mutations.txt changes the defaults).
+
+// A check returns "" when the property holds, else what broke.
+using PlausibilityCheck = std::function<std::string(const PlausibilityOptions&)>;
+
+void ExpectPinned(const PlausibilityCheck& check, double PlausibilityOptions::*field,
+                  double factor_up, double factor_down, const char* name) {
+  EXPECT_EQ(check(PlausibilityOptions{}), "");
+  PlausibilityOptions up, down;
+  up.*field *= factor_up;
+  down.*field *= factor_down;
+  EXPECT_NE(check(up), "") << name << " x " << factor_up << ": the property still holds";
+  EXPECT_NE(check(down), "") << name << " x " << factor_down << ": the property still holds";
+}
+
+// min_snr_db = -3 dB: noise alone gives 0 +- 1.2 dB, the lowest true impact of the synthetic
+// corpus sits at -2.2 dB (detect.hpp). A member at -2.4 dB stays (it is inside -1.5 dB too); one at
+// -4.5 dB goes (it is inside -6 dB).
+std::string CheckMinSnr(const PlausibilityOptions& o) {
+  Sequence s = Geometric(1.0, 0.4, 0.9, 8, 0.5);
+  s.impacts[3].snr_db = -2.4;
+  s.impacts[5].snr_db = -4.5;
+  RemoveLowSnrMembers(&s, o, "test");
+  if (s.removed.size() != 1 || s.removed[0].impact.snr_db != -4.5)
+    return "removed " + std::to_string(s.removed.size()) + " members";
+  return "";
+}
+TEST(PlausibilityRules, MembersBelowMinusThreeDecibelsAreRemoved) {
+  ExpectPinned(CheckMinSnr, &PlausibilityOptions::min_snr_db, 2.0, 0.5, "min_snr_db");
+}
+
+// max_sigma_fraction = 0.1: sigma_e / e ~ 2 sigma / T, 20 % at the bound. A member whose sigma
+// is 0.07 of its shorter interval stays; one at 0.14 goes (the bound at 0.05 or 0.2 moves one).
+std::string CheckSigmaFraction(const PlausibilityOptions& o) {
+  Sequence s = Geometric(1.0, 0.4, 0.9, 8, 0.5);
+  auto shorter = [&](std::size_t k) {
+    return std::min(s.impacts[k].time_s - s.impacts[k - 1].time_s,
+                    s.impacts[k + 1].time_s - s.impacts[k].time_s);
+  };
+  s.impacts[2].sigma_s = 0.07 * shorter(2);
+  s.impacts[5].sigma_s = 0.14 * shorter(5);
+  const double removed_t = s.impacts[5].time_s;
+  RemoveUntimedMembers(&s, o, "test");
+  if (s.removed.size() != 1 || s.removed[0].impact.time_s != removed_t)
+    return "removed " + std::to_string(s.removed.size()) + " members";
+  return "";
+}
+TEST(PlausibilityRules, AMemberWhoseSigmaIsATenthOfItsIntervalIsRemoved) {
+  ExpectPinned(CheckSigmaFraction, &PlausibilityOptions::max_sigma_fraction, 2.0, 0.5,
+               "max_sigma_fraction");
+}
+
+// The level of a dead ball (e = 0.5, level ~ speed: 6.0 dB lower each bounce) and one member far
+// quieter. Its reference is the median of the next level_reference_members = 3 members: the level
+// two bounces later (the median of 2 would be 3 dB higher, of 6 members 9 dB lower). A member
+// 18.5 dB below that level stays (21.5 dB below the median of 2); one 24 dB below goes (15 dB below
+// the median of 6). level_tolerance_db doubled or halved (40, 10 dB) moves one case too.
+std::string CheckQuietMember(const PlausibilityOptions& o) {
+  std::string why;
+  for (const double below : {18.5, 24.0}) {
+    Sequence s = Geometric(1.0, 0.4, 0.5, 10, 0.5);
+    s.impacts[2].amplitude = s.impacts[4].amplitude * std::pow(10.0, -below / 20.0);
+    RemoveQuietEarlierMembers(&s, o, "test");
+    const bool removed = s.removed.size() == 1 && s.impacts.size() == 9;
+    if (removed != (below > 20.0))
+      why +=
+          std::to_string(below) + " dB below: " + std::to_string(s.removed.size()) + " removed\n";
+  }
+  return why;
+}
+TEST(PlausibilityRules, AMemberTwentyDecibelsBelowTheNextThreeIsAPhantom) {
+  ExpectPinned(CheckQuietMember, &PlausibilityOptions::level_tolerance_db, 2.0, 0.5,
+               "level_tolerance_db");
+  PlausibilityOptions two, six;
+  two.level_reference_members = 2;
+  six.level_reference_members = 6;
+  EXPECT_NE(CheckQuietMember(two), "");
+  EXPECT_NE(CheckQuietMember(six), "");
+}
+
+// Two drops of one ball (the same flights, the same speeds): the second 14 dB quieter at the same
+// speed (inside sequence_level_tolerance_db = 20: a changed spot or microphone angle) stays; 28 dB
+// quieter (handling taps) goes. 10 or 40 dB moves one case.
+std::string CheckQuietSequence(const PlausibilityOptions& o) {
+  std::string why;
+  for (const double below : {14.0, 28.0}) {
+    std::vector<Sequence> seqs{Geometric(1.0, 0.4, 0.85, 12, 0.5),
+                               Geometric(6.0, 0.4, 0.85, 12, 0.5 * std::pow(10.0, -below / 20.0))};
+    const auto w = EnforcePlausibility(&seqs, o);
+    if ((seqs.size() == 1) != (below > 20.0))
+      why += std::to_string(below) + " dB quieter: " + std::to_string(seqs.size()) + " kept\n";
+  }
+  return why;
+}
+TEST(PlausibilityRules, ASequenceTwentyDecibelsQuieterAtTheSameSpeedIsNotThisBall) {
+  ExpectPinned(CheckQuietSequence, &PlausibilityOptions::sequence_level_tolerance_db, 2.0, 0.5,
+               "sequence_level_tolerance_db");
+}
+
+// max_mean_ratio = 0.995 (every impact loses energy; the most elastic pair measured shrinks its
+// intervals by 1.5 % a bounce). Its distance from 1 doubled or halved: 0.99, 0.9975. A lively ball
+// whose intervals shrink by 0.8 % a bounce is kept; a chain shrinking by 0.3 % is not_shrinking.
+std::string CheckMeanRatio(const PlausibilityOptions& o) {
+  std::string why;
+  for (const double e : {0.992, 0.997}) {
+    std::vector<Sequence> seqs{Geometric(1.0, 0.2, e, 40, 0.5)};
+    const auto w = EnforcePlausibility(&seqs, o);
+    if (seqs.empty() != (e > 0.995))
+      why += "ratio " + std::to_string(e) + ": kept " + std::to_string(seqs.size()) + "\n";
+  }
+  return why;
+}
+TEST(PlausibilityRules, IntervalsShrinkByAtLeastHalfAPercentABounce) {
+  EXPECT_EQ(CheckMeanRatio(PlausibilityOptions{}), "");
+  PlausibilityOptions tight, loose;
+  tight.max_mean_ratio = 0.99;
+  loose.max_mean_ratio = 0.9975;
+  EXPECT_NE(CheckMeanRatio(tight), "");
+  EXPECT_NE(CheckMeanRatio(loose), "");
+}
+
+// An untimed member near the end of a sequence is removed; the members after it are kept only
+// when they still form an interval of their own: a single impact left past the gap has no
+// flight of its own to measure (its interval spans the removed impact) and goes with it; two
+// impacts past the gap keep their flight between them and stay.
+TEST(PlausibilityRules, AnImpactLeftAlonePastAnUntimedMemberGoesWithIt) {
+  for (const std::size_t after : {1u, 2u, 3u}) {
+    Sequence s = Geometric(1.0, 0.4, 0.9, 10, 0.5);
+    const std::size_t k = s.impacts.size() - 1 - after;
+    s.impacts[k].sigma_s = 0.5 * (s.impacts[k + 1].time_s - s.impacts[k].time_s);
+    const std::vector<Warning> w = RemoveUntimedMembers(&s, PlausibilityOptions{}, "test");
+    const std::size_t removed = after == 1 ? 2 : 1;
+    EXPECT_EQ(s.impacts.size(), 10 - removed) << after << " member(s) after the untimed one";
+    EXPECT_EQ(s.removed.size(), removed) << after << " member(s) after the untimed one";
+    ASSERT_FALSE(w.empty());
+  }
 }
 
 TEST(PlausibilityStages, OptionsValidation) {

@@ -27,6 +27,7 @@
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "test_util.hpp"
 
@@ -153,7 +154,7 @@ struct SynthSource {
     for (std::size_t k = 0; k < r.recording.drops[0].size(); ++k) {
       onsets.push_back(r.recording.drops[0][k].onset_s);
       const double mark = onsets.back() + (k == 2 ? shift_mark_2_s : 0.0);
-      csv << k << "," << ShortestNumber(mark) << ",H,,,\"\"\n";
+      csv << k << "," << FormatShortest(mark) << ",H,,,\"\"\n";
     }
   }
 };

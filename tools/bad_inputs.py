@@ -3,9 +3,9 @@
 through the real CLI, with its exit code and message.
 
     python3 tools/bad_inputs.py --bouncecal build/bouncecal              # table + checks
-    python3 tools/bad_inputs.py --bouncecal build/bouncecal --markdown   # the README table only
-    python3 tools/bad_inputs.py --bouncecal build/bouncecal --readme README.md [--update]
-                                    # also check (rewrite) README's copy of the table
+    python3 tools/bad_inputs.py --bouncecal build/bouncecal --markdown   # the documented table only
+    python3 tools/bad_inputs.py --bouncecal build/bouncecal --readme docs/reliability.md [--update]
+                                    # also check (rewrite) the copy of the table in docs/reliability.md
 
 Builds every input in a temporary directory (audio with `bouncecal synth` or Python's
 `wave`/`struct`; the bundled data/default_steel_copper.flac and .toml, copied, as the good
@@ -13,7 +13,7 @@ recording and scene), runs each command in a fresh copy of that directory with r
 names as a user would, and prints one Markdown row per case: the input, the command, the exit
 code and the first line of stderr. Each case is checked, and the script exits 1 if any check
 fails:
-  - the exit code is the one README.md "### Exit codes" documents for that input (the third
+  - the exit code is the one docs/cli.md "### Exit codes" documents for that input (the third
     field of each CASES entry below);
   - no crash: no exit status >= 128 or death by a signal, no exit 1 (internal error), no
     sanitizer, abort, assertion or uncaught-exception text; the message starts "bouncecal:";
@@ -23,7 +23,7 @@ fails:
     the working directory (inputs and would-be outputs alike) has the same name and SHA-256
     before and after the command, so a partial output file, a leftover temporary file or an
     overwritten input fails the case.
-With --readme the README's copy of the table must equal what is printed (the ctest passes it,
+With --readme the documented copy of the table must equal what is printed (the ctest passes it,
 so a changed message or code shows up as drift). Runs in ~6-10 s (the slowest cases fit the
 bundled recording).
 """
@@ -48,7 +48,7 @@ CRASH_TEXT = [b"internal error", b"Sanitizer", b"runtime error:", b"terminate ca
               b"Check failed"]
 NON_UTF8 = b"drop\xff.wav"  # 0xFF never occurs in UTF-8
 
-# Exit codes (README.md "### Exit codes", include/bouncecal/core/error.hpp).
+# Exit codes (docs/cli.md "### Exit codes", include/bouncecal/core/error.hpp).
 USAGE, MISSING, NOT_AUDIO, BAD_SAMPLES, SILENCE, NO_BOUNCES = 2, 3, 4, 5, 6, 7
 BAD_SCENE, BAD_PARAMETER, OUTPUT, SOME_FAILED = 8, 9, 11, 12
 
@@ -328,7 +328,7 @@ def run_all(bouncecal):
 
 
 def readme_table(readme, lines, update):
-    """Compares (or with update, replaces) the README's copy of the table: the table lines from
+    """Compares (or with update, replaces) the documented copy of the table: the table lines from
     HEADER on. Returns the number of lines that differ."""
     with open(readme, encoding="utf-8") as f:
         text = f.read().split("\n")
@@ -343,7 +343,7 @@ def readme_table(readme, lines, update):
     drift = sum(1 for a, b in zip(old, lines) if a != b) + abs(len(old) - len(lines))
     for a, b in zip(old, lines):
         if a != b and not update:
-            print("bad_inputs: README row\n  %s\nis now\n  %s" % (a, b), file=sys.stderr)
+            print("bad_inputs: documented row\n  %s\nis now\n  %s" % (a, b), file=sys.stderr)
     if update and drift:
         with open(readme, "w", encoding="utf-8") as f:
             f.write("\n".join(text[:start] + lines + text[end:]))
@@ -355,7 +355,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bouncecal", required=True, help="the bouncecal program to test")
     ap.add_argument("--markdown", action="store_true",
-                    help="print only the Markdown table (for README.md)")
+                    help="print only the Markdown table (for docs/reliability.md)")
     ap.add_argument("--readme", help="also check that this file holds the table as printed")
     ap.add_argument("--update", action="store_true", help="with --readme: rewrite its table")
     args = ap.parse_args()
@@ -364,7 +364,7 @@ def main():
         print("\n%d cases, %d failed" % (len(CASES), failed))
     drift = readme_table(args.readme, lines, args.update) if args.readme else 0
     if drift:
-        print("bad_inputs: %d lines of the README table differ (regenerate: --readme %s "
+        print("bad_inputs: %d lines of the documented table differ (regenerate: --readme %s "
               "--update)" % (drift, args.readme), file=sys.stderr)
     return 1 if failed or drift else 0
 

@@ -101,6 +101,11 @@ for to in lammps liggghts yade; do
   run "bundled.export_$to" export params.json --to "$to" -o "deck_$to" --json
   keep "bundled.export_$to" "deck_$to"
 done
+for to in lammps liggghts; do
+  run "bundled.export_packing_$to" export params.json --to "$to" --scene packing \
+    -o "packing_$to" --json
+  keep "bundled.export_packing_$to" "packing_$to"
+done
 keep bundled.calibrate_params params.json
 run simulate_scene simulate --scene "$bundled_scene" --json
 run simulate_scene_text simulate --scene "$bundled_scene"
@@ -109,6 +114,16 @@ run laws laws
 while read -r law; do
   run "laws.$law" laws "$law"
   run "simulate.$law" simulate --scene "$bundled_scene" --law "$law" --max-impacts 8 --json
+  [[ $law == expression ]] && continue
+  # Every law's fit exported to every simulator (the mapping each registry row names).
+  run "export.$law.calibrate" calibrate "$bundled" --scene "$bundled_scene" --law "$law" \
+    -o "p_$law.json"
+  for to in lammps liggghts yade; do
+    run "export.$law.$to" export "p_$law.json" --to "$to" -o "x_${law}_$to" --force \
+      --allow-approximation --json
+    keep "export.$law.$to" "x_${law}_$to"
+  done
+  keep "export.$law.calibrate" "p_$law.json"
 done < <("$bin" laws --json | python3 -c 'import json,sys; [print(l["name"]) for l in json.load(sys.stdin)["laws"]]')
 
 # Every synth preset (its file and truth are outputs too), with the preset's scene.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The README's law x simulator table, from the rows the integration suite wrote (one per case,
+# The law x simulator table of docs/export.md, from the rows the integration suite wrote (one per case,
 # build/integration/LAW_TARGET.md). Run the suite first: (cd build && ctest -L integration).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)

@@ -10,6 +10,8 @@ times out); it *survives* when every test passes.
     tools/mutation_score.py                      # tools/mutations.txt, all mutations
     tools/mutation_score.py --only 3,7           # a subset (ids)
     tools/mutation_score.py --list my.txt        # a reviewer's own list
+    tools/mutation_score.py --only a13,a14 --targets tracker_rules_test,sequence_test
+                                                 # build and run only these test programs
 
 Mutation list format (tools/mutations.txt): blocks separated by blank lines,
 
@@ -76,6 +78,12 @@ def run(cmd, cwd, timeout=None, env=None):
     except subprocess.TimeoutExpired as e:
         out = (e.stdout or b"").decode(errors="replace") if isinstance(e.stdout, bytes) else (e.stdout or "")
         return -9, out + "\n[timeout]", time.time() - t0
+
+
+def suites_of(tree, target):
+    """The GoogleTest suites of tests/<target>.cpp (ctest names its tests Suite.Name)."""
+    text = open(os.path.join(tree, "tests", target + ".cpp"), encoding="utf-8").read()
+    return sorted(set(re.findall(r"^\s*TEST(?:_F|_P)?\(\s*(\w+)\s*,", text, re.M)))
 
 
 def sync_tree(work):
@@ -150,6 +158,9 @@ def main():
                     help="extra configure arguments for the copy (e.g. -DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld)")
     ap.add_argument("--ctest-args", default="-LE integration|bench",
                     help="extra ctest arguments (default leaves out the DEM-simulator runs and the README-number benchmarks)")
+    ap.add_argument("--targets", default="",
+                    help="comma-separated test programs (tests/<name>.cpp): build only them and "
+                         "run only their tests (a survivor may still be caught by the rest)")
     args = ap.parse_args()
 
     muts = parse_list(args.list)
@@ -167,8 +178,15 @@ def main():
                       "-DBOUNCECAL_WERROR=OFF"] + args.cmake_args.split(), tree, env=env)
     if rc != 0:
         sys.exit("configure failed:\n" + out[-3000:])
+    targets = [t for t in args.targets.split(",") if t]
+    target_args = ["--target"] + targets if targets else []
+    if targets:
+        # Only the tests of the programs built: a program left unbuilt must not run stale.
+        suites = [s for t in targets for s in suites_of(tree, t)]
+        args.ctest_args += " -R (^|/)(" + "|".join(suites) + ")\\."
     print(f"building the unmutated copy in {build} ...", flush=True)
-    rc, out, t = run(["cmake", "--build", build, "-j", str(args.jobs)], tree, env=env)
+    rc, out, t = run(["cmake", "--build", build, "-j", str(args.jobs)] + target_args, tree,
+                     env=env)
     if rc != 0:
         sys.exit("the unmutated tree does not build:\n" + out[-3000:])
     # --no-tests=error: a suite that lost its tests (failed discovery) must not pass.
@@ -181,9 +199,10 @@ def main():
         print(f"baseline: build ok, suite passes ({t:.0f} s)\n", flush=True)
 
     order_tests = cheap_first(build)
-    # One "all" build: naming the suite's targets instead makes the Makefile generator re-check
-    # the globs and the library once per target (slower than relinking the benchmarks).
-    build_cmd = ["cmake", "--build", build, "-j", str(args.jobs)]
+    # One "all" build unless --targets: naming the suite's targets instead makes the Makefile
+    # generator re-check the globs and the library once per target (slower than relinking the
+    # benchmarks); naming a few test programs is faster.
+    build_cmd = ["cmake", "--build", build, "-j", str(args.jobs)] + target_args
     results = []
     for m in muts:
         path = os.path.join(tree, m["file"])
@@ -227,7 +246,7 @@ def main():
         results.append((m, verdict, why, dt))
         print(f"[{m['id']}] {verdict} ({dt:.0f} s) {m['desc']}: {why}", flush=True)
     # Leave the build matching the unmutated sources.
-    run(["cmake", "--build", build, "-j", str(args.jobs)], tree, env=env)
+    run(build_cmd, tree, env=env)
 
     killed = sum(1 for r in results if r[1] == "KILLED")
     survived = [r for r in results if r[1] == "SURVIVED"]

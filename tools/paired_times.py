@@ -4,6 +4,8 @@ alternately (A, B, A, B, ...), so that a neighbour's load falls on both alike.
 
     tools/paired_times.py --a /tmp/before/bouncecal --b build/bouncecal --runs 21
     tools/paired_times.py --a ... --b ... --long          # also a 10-minute recording
+    tools/paired_times.py --a build/bouncecal --b build/bouncecal --preload-b "liblapack.so.3"
+                                    # what linking a library would cost: B preloads it
 
 Prints a Markdown table: per command the median wall time of each build (ms), the median of
 the paired ratios B / A and the median CPU time (user + system) of each. The commands are
@@ -43,10 +45,11 @@ def commands(work, long_file):
     return cmds
 
 
-def run(binary, args):
+def run(binary, args, env=None):
     """(wall s, cpu s) of one run; its output is discarded."""
     start = time.perf_counter()
-    proc = subprocess.Popen([binary] + args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen([binary] + args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env=env)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - start
     if os.waitstatus_to_exitcode(status) not in (0, 14):
@@ -77,7 +80,13 @@ def main():
     ap.add_argument("--runs", type=int, default=21, help="runs of each build per command")
     ap.add_argument("--long", action="store_true", help="also detect a 10-minute recording")
     ap.add_argument("--only", default="", help="command names to run, separated by ;")
+    ap.add_argument("--preload-b", default="",
+                    help="LD_PRELOAD for B's runs (sonames separated by spaces): the start-up "
+                    "cost of linking those libraries, with --a and --b the same binary")
     a = ap.parse_args()
+    env = {"A": None, "B": None}
+    if a.preload_b:
+        env["B"] = dict(os.environ, LD_PRELOAD=a.preload_b)
     with tempfile.TemporaryDirectory() as work:
         long_file = make_long(a.a, work) if a.long else None
         print("load average before: %.2f %.2f %.2f" % os.getloadavg())
@@ -88,17 +97,18 @@ def main():
         for name, args in commands(work, long_file):
             if only and name not in only:
                 continue
-            for binary in (a.a, a.b):  # warm the page cache
-                run(binary, args)
+            binaries = {"A": a.a, "B": a.b}
+            for k in ("A", "B"):  # warm the page cache
+                run(binaries[k], args, env[k])
             wa, wb, ca, cb, ratio = [], [], [], [], []
             for i in range(a.runs):
-                order = (a.a, a.b) if i % 2 == 0 else (a.b, a.a)
-                res = {b: run(b, args) for b in order}
-                wa.append(res[a.a][0])
-                wb.append(res[a.b][0])
-                ca.append(res[a.a][1])
-                cb.append(res[a.b][1])
-                ratio.append(res[a.b][0] / res[a.a][0])
+                order = ("A", "B") if i % 2 == 0 else ("B", "A")
+                res = {k: run(binaries[k], args, env[k]) for k in order}
+                wa.append(res["A"][0])
+                wb.append(res["B"][0])
+                ca.append(res["A"][1])
+                cb.append(res["B"][1])
+                ratio.append(res["B"][0] / res["A"][0])
             med = statistics.median
             print("| %s | %.1f | %.1f | %.3f | %.1f | %.1f |" %
                   (name, 1e3 * med(wa), 1e3 * med(wb), med(ratio), 1e3 * med(ca), 1e3 * med(cb)),

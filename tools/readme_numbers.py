@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Checks that the README's measured tables are what the benchmark programs print.
+"""Checks that the measured tables of README.md and docs/benchmarks.md are what the benchmark programs print.
 
-A measured table in README.md is preceded by a marker comment naming the program that prints
+A measured table in one of these files is preceded by a marker comment naming the program that prints
 it (run from the build directory) and how much its numbers may move:
 
     <!-- measured: bench_detect --quick --seeds 8 --no-aubio; key: 1; tolerance: 0.03;
@@ -23,11 +23,13 @@ rows, matched by their first `key` cells (default 1). Every other cell is compar
   0.003 s moved to 0.017 s under load: too close to the printing resolution to tell);
 - anything else (words, "–") must be equal.
 
-    tools/readme_numbers.py [--build DIR]            # check; exit 1 and list every drift
-    tools/readme_numbers.py [--build DIR] --update   # rewrite the README rows from the programs
+    tools/readme_numbers.py [--build DIR] [FILE...]            # check; exit 1 and list every drift
+    tools/readme_numbers.py [--build DIR] --update [FILE...]   # rewrite the drifted rows
 
-Registered as the ctest `readme_numbers` (label bench): a README number that drifts from what
-its program prints fails the suite.
+FILE defaults to README.md and docs/benchmarks.md.
+
+Registered as the ctest `readme_numbers` (label bench): a documented number that drifts from
+what its program prints fails the suite.
 """
 import argparse
 import os
@@ -135,28 +137,25 @@ def run_program(command, build, cache):
     return cache[command]
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
-    ap.add_argument("--readme", default=os.path.join(ROOT, "README.md"))
-    ap.add_argument("--update", action="store_true")
-    args = ap.parse_args()
-    text = open(args.readme, encoding="utf-8").read()
+def check_file(path, build, cache, update):
+    """(problems, cells checked) of one file's measured tables; with update, rewrites its rows."""
+    name = os.path.relpath(path, ROOT)
+    text = open(path, encoding="utf-8").read()
     lines = text.split("\n")
     readme_tables = tables_in(lines)
-    cache, problems, checked, updates = {}, [], 0, {}
+    problems, checked, updates = [], 0, {}
     for m in MARKER.finditer(text):
         spec = parse_marker(m.group(1))
         end_line = text.count("\n", 0, m.end())
         table = next((t for t in readme_tables if t[1] > end_line), None)
         if table is None or any(lines[k].strip() for k in range(end_line + 1, table[1])):
-            sys.exit(f"README line {end_line + 1}: a measured: marker must be followed by a table")
+            sys.exit(f"{name}:{end_line + 1}: a measured: marker must be followed by a table")
         _, h, rows = table
-        out = run_program(spec["command"], args.build, cache)
+        out = run_program(spec["command"], build, cache)
         candidates = [t for t in tables_in(out) if cells(out[t[1]]) == cells(lines[h]) and
                       (not spec["section"] or spec["section"] in t[0])]
         if not candidates:
-            problems.append(f"README line {h + 1}: `{spec['command']}` prints no table with the "
+            problems.append(f"{name}:{h + 1}: `{spec['command']}` prints no table with the "
                             f"header {lines[h].strip()}" +
                             (f" under a heading with {spec['section']!r}" if spec["section"] else ""))
             continue
@@ -166,30 +165,45 @@ def main():
             rc = cells(lines[r])
             key = tuple(rc[:spec["key"]])
             if key not in prog:
-                problems.append(f"README line {r + 1}: row {' | '.join(key)} is not printed by "
+                problems.append(f"{name}:{r + 1}: row {' | '.join(key)} is not printed by "
                                 f"`{spec['command']}`")
                 continue
             pc = cells(prog[key])
             if len(pc) != len(rc):
-                problems.append(f"README line {r + 1}: {len(rc)} cells, the program prints "
-                                f"{len(pc)}")
+                problems.append(f"{name}:{r + 1}: {len(rc)} cells, the program prints {len(pc)}")
                 continue
             for col, ra, pa in zip(header, rc, pc):
                 checked += 1
                 why = compare_cell(ra, pa, spec["tolerance"], spec["times"].get(col, 0.0))
                 if why:
-                    problems.append(f"README line {r + 1}, {col!r} of {' | '.join(key)}: README "
+                    problems.append(f"{name}:{r + 1}, {col!r} of {' | '.join(key)}: documented "
                                     f"{ra!r}, `{spec['command']}` prints {pa!r} ({why})")
                     updates[r] = prog[key]
-    if args.update and updates:
+    if update and updates:
         for r, new in updates.items():
             lines[r] = new
-        open(args.readme, "w", encoding="utf-8").write("\n".join(lines))
-        print(f"updated {len(updates)} README row(s)")
+        open(path, "w", encoding="utf-8").write("\n".join(lines))
+        print(f"{name}: updated {len(updates)} row(s)")
+    return problems, checked
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--update", action="store_true")
+    ap.add_argument("files", nargs="*", default=[os.path.join(ROOT, "README.md"),
+                                                 os.path.join(ROOT, "docs", "benchmarks.md")])
+    args = ap.parse_args()
+    cache, problems, checked = {}, [], 0
+    for path in args.files:
+        p, c = check_file(path, args.build, cache, args.update)
+        problems += p
+        checked += c
+    if args.update:
         return 0
     for p in problems:
         print(p)
-    print(f"{checked} README cells checked against {len(cache)} program run(s): "
+    print(f"{checked} documented cells checked against {len(cache)} program run(s): "
           f"{len(problems)} drift(s)")
     return 1 if problems else 0
 

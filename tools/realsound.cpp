@@ -38,7 +38,7 @@
 //   --tail S              recording after the last impact [1.0]
 //   --clip-start S [--clip-length S]   keep only this window (a clip starting mid-sequence)
 //   --subtype PCM_16|PCM_24|FLOAT [PCM_24]
-// Exit codes: those of bouncecal (README "Exit codes"); 2 for a bad command line.
+// Exit codes: those of bouncecal (docs/cli.md "Exit codes"); 2 for a bad command line.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

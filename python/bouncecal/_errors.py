@@ -1,4 +1,4 @@
-"""Exceptions of the bouncecal package: one class per exit code of the CLI (README: exit codes).
+"""Exceptions of the bouncecal package: one class per exit code of the CLI (docs/cli.md: exit codes).
 
 Every error the library raises is a `bouncecal.Error` with
   .message    the CLI's message (what `bouncecal` prints after "bouncecal: ")

@@ -19,6 +19,7 @@
 #include "avx2_clones.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/stats.hpp"
 
 namespace bouncecal {
 namespace fs = std::filesystem;
@@ -137,15 +138,6 @@ int SubtypeFromName(const std::string& path, const std::string& name) {
   }
   throw Error(ErrorCode::kOutput, path + ": unknown sample subtype '" + name +
                                       "' (expected PCM_16, PCM_24, PCM_32, FLOAT or VORBIS)");
-}
-
-// The value at the p-quantile (0..1) of v (v is reordered).
-double Quantile(std::vector<float>* v, double p) {
-  if (v->empty()) return 0.0;
-  const auto k = static_cast<std::size_t>(std::min<double>(
-      static_cast<double>(v->size() - 1), std::floor(p * static_cast<double>(v->size() - 1))));
-  std::nth_element(v->begin(), v->begin() + static_cast<std::ptrdiff_t>(k), v->end());
-  return (*v)[k];
 }
 
 }  // namespace
@@ -654,8 +646,8 @@ double ImpactToNoiseDb(const std::vector<float>& x) {
   // half of any recording).
   std::vector<float> d(x.size() - 1);
   for (std::size_t i = 1; i < x.size(); ++i) d[i - 1] = std::fabs(x[i] - x[i - 1]);
-  const double peak = Quantile(&d, 0.9999);
-  const double noise = Quantile(&d, 0.5);
+  const double peak = LowerQuantile(&d, 0.9999);
+  const double noise = LowerQuantile(&d, 0.5);
   constexpr double kTiny = 1e-10;  // keeps digital silence finite (about 200 dB)
   return 20.0 * std::log10((peak + kTiny) / (noise + kTiny));
 }

@@ -11,17 +11,12 @@
 
 #include "blocks.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "detect_signal.hpp"
 #include "signals.hpp"
 
 namespace bouncecal {
 namespace {
-
-std::string Fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
 
 // Warnings of one sequence's flags (missed and irregular intervals).
 void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) {
@@ -31,7 +26,7 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
       out->push_back({"missed_impact",
                       "sequence " + std::to_string(s) + ": an impact seems missing after impact " +
                           std::to_string(k) +
-                          " (t = " + Fmt("%.4f", q.impacts[static_cast<std::size_t>(k)].time_s) +
+                          " (t = " + FormatFixed(q.impacts[static_cast<std::size_t>(k)].time_s, 4) +
                           " s); its interval is about two expected ones",
                       k,
                       "listen to the impacts kept (detect --click-track FILE.wav); a quiet bounce "
@@ -44,8 +39,8 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
       out->push_back(
           {"irregular_interval",
            "sequence " + std::to_string(s) + ": the interval after impact " + std::to_string(k) +
-               " (t = " + Fmt("%.4f", im[j].time_s) + " s: " + Fmt("%.4f", d) + " s" +
-               (j > 0 ? " after " + Fmt("%.4f", d0) + " s" : std::string()) +
+               " (t = " + FormatFixed(im[j].time_s, 4) + " s: " + FormatFixed(d, 4) + " s" +
+               (j > 0 ? " after " + FormatFixed(d0, 4) + " s" : std::string()) +
                ") breaks the smooth ratio pattern (spin or an uneven spot?); the "
                "sequence continues through it",
            k, "nothing to do if the ball hit an uneven spot; drop it on a flat, hard floor"});
@@ -63,8 +58,8 @@ struct Window {
 std::string WindowText(const DetectOptions& options) {
   // Appended piece by piece: GCC 12's -Wrestrict misreads "[" + std::string inlined here.
   std::string window = "[";
-  window += Fmt("%g", options.start_s) + ", ";
-  window += options.end_s ? Fmt("%g", *options.end_s) : std::string("end");
+  window += FormatGeneral(options.start_s) + ", ";
+  window += options.end_s ? FormatGeneral(*options.end_s) : std::string("end");
   window += ") s";
   return window;
 }
@@ -75,7 +70,7 @@ void CheckWindowStart(const AudioInfo& info, const DetectOptions& options) {
   if (options.start_s >= duration_s)
     throw Error(ErrorCode::kNoBounces, info.path + ": the window " + WindowText(options) +
                                            " starts after the recording ends (" +
-                                           Fmt("%.3f", duration_s) + " s)");
+                                           FormatFixed(duration_s, 3) + " s)");
 }
 
 // A recording whose header gives no length (kUnknownFrames) is read to its end: the window
@@ -125,7 +120,7 @@ void Finish(SignalDetection chosen, const DetectOptions& options, DetectionResul
          "decoded from lossy " + info.subtype + " (" + info.format + "): " +
              (info.codec_delay_samples > 0
                   ? std::to_string(info.codec_delay_samples) + " priming samples (" +
-                        Fmt("%.2f", delay_ms) + " ms) " +
+                        FormatFixed(delay_ms, 2) + " ms) " +
                         (info.codec_delay_trimmed
                              ? "were trimmed as the file says"
                              : "are declared but were not trimmed: times are late by that much")
@@ -159,19 +154,19 @@ bool DetectOptions::IsValid(std::string* error) const {
   if (channel.kind == ChannelSelection::Kind::kIndex && channel.index < 0)
     return fail("DetectOptions::channel.index must be >= 0");
   if (!(start_s >= 0.0) || !std::isfinite(start_s))
-    return fail("DetectOptions::start_s = " + Fmt("%g", start_s) +
+    return fail("DetectOptions::start_s = " + FormatGeneral(start_s) +
                 ": must be a finite time >= 0 s");
   if (end_s && (!std::isfinite(*end_s) || !(*end_s > start_s)))
-    return fail("DetectOptions::end_s = " + Fmt("%g", *end_s) +
-                ": must be a finite time after start_s = " + Fmt("%g", start_s) + " s");
+    return fail("DetectOptions::end_s = " + FormatGeneral(*end_s) +
+                ": must be a finite time after start_s = " + FormatGeneral(start_s) + " s");
   if (!(max_block_s >= 4.0) || !std::isfinite(max_block_s))
-    return fail("DetectOptions::max_block_s = " + Fmt("%g", max_block_s) +
+    return fail("DetectOptions::max_block_s = " + FormatGeneral(max_block_s) +
                 ": must be a finite time >= 4 s");
   if (threads < 0 || threads > 256)
     return fail("DetectOptions::threads = " + std::to_string(threads) +
                 ": must be 0 (automatic) to 256");
   if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
-    return fail("DetectOptions::min_snr_db = " + Fmt("%g", min_snr_db) +
+    return fail("DetectOptions::min_snr_db = " + FormatGeneral(min_snr_db) +
                 ": must be in [-120, 120] dB");
   return true;
 }

@@ -9,15 +9,10 @@
 
 #include "bouncecal/acoustic/impacts_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 
 namespace bouncecal {
 namespace {
-
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 // Times from a file keep the detector's window: impacts outside it are dropped, and so are
 // sequences left with fewer than 3 impacts.
@@ -36,8 +31,9 @@ void ApplyWindow(const std::string& impacts_file, const DetectOptions& opt,
   }
   if (kept.empty()) {
     throw Error(ErrorCode::kNoBounces,
-                impacts_file + ": no sequence of 3 or more impacts in the window [" + Num(lo) +
-                    ", " + (opt.end_s ? Num(*opt.end_s) : std::string("end")) + ") s");
+                impacts_file + ": no sequence of 3 or more impacts in the window [" +
+                    FormatGeneral(lo) + ", " +
+                    (opt.end_s ? FormatGeneral(*opt.end_s) : std::string("end")) + ") s");
   }
   *sequences = std::move(kept);
 }

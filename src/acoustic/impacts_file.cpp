@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 
 namespace bouncecal {
 namespace {
@@ -26,12 +27,6 @@ struct RawTime {
   int line = 0;  // 1-based line (CSV/labels/list) or 0-based impact index (JSON: see `where`)
   std::string where;
 };
-
-std::string Fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
 
 [[noreturn]] void Bad(const std::string& path, const std::string& where, const std::string& why) {
   throw Error(ErrorCode::kBadScene, path + (where.empty() ? "" : ":" + where) + ": " + why);
@@ -114,7 +109,7 @@ void CheckSecondCopy(const std::string& path, const nlohmann::json& d) {
       "lists each impact once";
   auto time = [](const nlohmann::json& i) {
     return i.is_object() && i.contains("time_s") && i["time_s"].is_number()
-               ? Fmt("%.6f s", i["time_s"].get<double>())
+               ? FormatFixed(i["time_s"].get<double>(), 6) + " s"
                : std::string("no time");
   };
   for (std::size_t k = 0; k < std::max(top.size(), read.size()); ++k) {
@@ -248,14 +243,14 @@ std::vector<Sequence> Validate(const std::string& path, std::vector<RawTime> raw
   std::vector<Sequence> seqs;
   std::vector<int> ids;
   for (const RawTime& r : raw) {
-    if (!std::isfinite(r.t)) Bad(path, r.where, "time " + Fmt("%g", r.t) + " is not finite");
-    if (r.t < 0.0) Bad(path, r.where, "time " + Fmt("%g", r.t) + " s is negative");
+    if (!std::isfinite(r.t)) Bad(path, r.where, "time " + FormatGeneral(r.t) + " is not finite");
+    if (r.t < 0.0) Bad(path, r.where, "time " + FormatGeneral(r.t) + " s is negative");
     if (o.duration_s && r.t > *o.duration_s)
       Bad(path, r.where,
-          "time " + Fmt("%.6f", r.t) + " s is beyond the recording (" + Fmt("%.6f", *o.duration_s) +
-              " s long)");
+          "time " + FormatFixed(r.t, 6) + " s is beyond the recording (" +
+              FormatFixed(*o.duration_s, 6) + " s long)");
     if (r.sigma && (!std::isfinite(*r.sigma) || !(*r.sigma > 0.0)))
-      Bad(path, r.where, "sigma_s " + Fmt("%g", *r.sigma) + " must be a finite number > 0");
+      Bad(path, r.where, "sigma_s " + FormatGeneral(*r.sigma) + " must be a finite number > 0");
     auto it = std::find(ids.begin(), ids.end(), r.sequence);
     if (it == ids.end()) {
       ids.push_back(r.sequence);
@@ -266,10 +261,10 @@ std::vector<Sequence> Validate(const std::string& path, std::vector<RawTime> raw
     Sequence& q = seqs[static_cast<std::size_t>(it - ids.begin())];
     if (!q.impacts.empty()) {
       const double prev = q.impacts.back().time_s;
-      if (r.t == prev) Bad(path, r.where, "time " + Fmt("%.6f", r.t) + " s is a duplicate");
+      if (r.t == prev) Bad(path, r.where, "time " + FormatFixed(r.t, 6) + " s is a duplicate");
       if (r.t < prev)
         Bad(path, r.where,
-            "time " + Fmt("%.6f", r.t) + " s comes after " + Fmt("%.6f", prev) +
+            "time " + FormatFixed(r.t, 6) + " s comes after " + FormatFixed(prev, 6) +
                 " s: times must be sorted");
     }
     Impact im;
@@ -303,10 +298,10 @@ bool ImpactsFileOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(default_sigma_s > 0.0) || !std::isfinite(default_sigma_s))
-    return fail("ImpactsFileOptions::default_sigma_s = " + Fmt("%g", default_sigma_s) +
+    return fail("ImpactsFileOptions::default_sigma_s = " + FormatGeneral(default_sigma_s) +
                 ": must be a finite number > 0");
   if (duration_s && (!std::isfinite(*duration_s) || !(*duration_s > 0.0)))
-    return fail("ImpactsFileOptions::duration_s = " + Fmt("%g", *duration_s) + ": must be > 0");
+    return fail("ImpactsFileOptions::duration_s = " + FormatGeneral(*duration_s) + ": must be > 0");
   if (min_impacts < 2)
     return fail("ImpactsFileOptions::min_impacts = " + std::to_string(min_impacts) +
                 ": must be >= 2");

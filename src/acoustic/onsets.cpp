@@ -10,18 +10,11 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "bouncecal/core/stats.hpp"
 #include "spectra.hpp"
 
 namespace bouncecal {
 namespace {
-
-// Median of v (copied), robust and O(n).
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 // Robust rms of x from the median absolute value (Gaussian: rms = median|x| / 0.6745),
 // on at most ~16k samples spread over x.
@@ -31,7 +24,7 @@ double RobustRms(const std::vector<float>& x) {
   std::vector<double> a;
   a.reserve(x.size() / step + 1);
   for (std::size_t i = 0; i < x.size(); i += step) a.push_back(std::fabs(x[i]));
-  return Median(std::move(a)) / 0.6745;
+  return UpperMedian(std::move(a)) / 0.6745;
 }
 
 int NearestPowerOfTwo(double v) {

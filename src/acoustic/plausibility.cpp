@@ -7,26 +7,15 @@
 #include <limits>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
+#include "bouncecal/core/stats.hpp"
 
 namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string Fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
-
 double LevelDb(const Impact& i) { return 20.0 * std::log10(std::max(i.amplitude, 1e-12)); }
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
 
 // Removes the members for which drop[k] is true (recorded in s->removed with `code`); a removal
 // from inside the sequence leaves a gap of two flights, flagged in missed_after. Indices in
@@ -92,10 +81,10 @@ bool PlausibilityOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
-    return fail("PlausibilityOptions::min_snr_db = " + Fmt("%g", min_snr_db) +
+    return fail("PlausibilityOptions::min_snr_db = " + FormatGeneral(min_snr_db) +
                 ": must be in [-120, 120] dB");
   if (!(max_sigma_fraction > 0.0) || max_sigma_fraction > 1.0)
-    return fail("PlausibilityOptions::max_sigma_fraction = " + Fmt("%g", max_sigma_fraction) +
+    return fail("PlausibilityOptions::max_sigma_fraction = " + FormatGeneral(max_sigma_fraction) +
                 ": must be in (0, 1]");
   if (!(level_tolerance_db > 0.0) || !std::isfinite(level_tolerance_db))
     return fail("PlausibilityOptions::level_tolerance_db must be a finite number > 0");
@@ -104,7 +93,7 @@ bool PlausibilityOptions::IsValid(std::string* error) const {
   if (level_reference_members < 1)
     return fail("PlausibilityOptions::level_reference_members must be >= 1");
   if (!(max_mean_ratio > 0.0) || max_mean_ratio > 1.05)
-    return fail("PlausibilityOptions::max_mean_ratio = " + Fmt("%g", max_mean_ratio) +
+    return fail("PlausibilityOptions::max_mean_ratio = " + FormatGeneral(max_mean_ratio) +
                 ": must be in (0, 1.05]");
   if (min_sequence_impacts < 3)
     return fail("PlausibilityOptions::min_sequence_impacts = " +
@@ -157,14 +146,15 @@ std::vector<Warning> RemoveUntimedMembers(Sequence* s, const PlausibilityOptions
     const double sig = q[k].sigma_s;
     if (std::isfinite(sig) && sig > 0.0 && sig <= o.max_sigma_fraction * shorter) continue;
     drop[k] = true;
-    out.push_back({"sigma_removed",
-                   label + ": the impact at t = " + Fmt("%.4f", q[k].time_s) +
-                       " s was removed: its timing sigma (" + Fmt("%.3g", sig) +
-                       " s) is not below max_sigma_fraction = " + Fmt("%g", o.max_sigma_fraction) +
-                       " of its shorter interval (" + Fmt("%.4f", shorter) + " s)",
-                   -1,
-                   "listen to what was kept (detect --click-track FILE.wav); if a bounce is "
-                   "missing, record closer to the impact point or in a quieter room"});
+    out.push_back(
+        {"sigma_removed",
+         label + ": the impact at t = " + FormatFixed(q[k].time_s, 4) +
+             " s was removed: its timing sigma (" + FormatGeneral(sig, 3) +
+             " s) is not below max_sigma_fraction = " + FormatGeneral(o.max_sigma_fraction) +
+             " of its shorter interval (" + FormatFixed(shorter, 4) + " s)",
+         -1,
+         "listen to what was kept (detect --click-track FILE.wav); if a bounce is "
+         "missing, record closer to the impact point or in a quieter room"});
   }
   DropDanglingTail(&drop, &out);
   if (!out.empty()) RemoveMembers(s, drop, "sigma_removed");
@@ -180,9 +170,9 @@ std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions&
     if (i.snr_db >= o.min_snr_db) continue;
     drop[k] = true;
     out.push_back({"low_snr_removed",
-                   label + ": the impact at t = " + Fmt("%.4f", i.time_s) + " s was removed: SNR " +
-                       Fmt("%.1f", i.snr_db) +
-                       " dB is below min_snr_db = " + Fmt("%g", o.min_snr_db) + " dB",
+                   label + ": the impact at t = " + FormatFixed(i.time_s, 4) +
+                       " s was removed: SNR " + FormatFixed(i.snr_db, 1) +
+                       " dB is below min_snr_db = " + FormatGeneral(o.min_snr_db) + " dB",
                    -1,
                    "to keep quieter impacts lower --min-snr-db (check them with detect "
                    "--click-track FILE.wav)"});
@@ -210,12 +200,12 @@ std::vector<Warning> RemoveQuietEarlierMembers(Sequence* s, const PlausibilityOp
       if (!(below > o.level_tolerance_db)) continue;
       drop[k] = true;
       out.push_back({"phantom_removed",
-                     label + ": the impact at t = " + Fmt("%.4f", q[k].time_s) +
-                         " s was removed: its level (" + Fmt("%.1f", LevelDb(q[k])) + " dBFS) is " +
-                         Fmt("%.1f", below) +
+                     label + ": the impact at t = " + FormatFixed(q[k].time_s, 4) +
+                         " s was removed: its level (" + FormatFixed(LevelDb(q[k]), 1) +
+                         " dBFS) is " + FormatFixed(below, 1) +
                          " dB below the impacts after it, but an earlier impact is faster and "
                          "so not quieter (level_tolerance_db = " +
-                         Fmt("%g", o.level_tolerance_db) + ")",
+                         FormatGeneral(o.level_tolerance_db) + ")",
                      -1,
                      "nothing to do if it was a tap or a handling noise; if it was a bounce, "
                      "--start after the noise keeps it out of the search"});
@@ -238,9 +228,9 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
   std::vector<std::string> labels;
   std::vector<bool> keep(seqs.size(), true);
   for (std::size_t s = 0; s < seqs.size(); ++s) {
-    labels.push_back("the sequence from " +
-                     Fmt("%.4f", seqs[s].impacts.empty() ? 0.0 : seqs[s].impacts.front().time_s) +
-                     " s");
+    labels.push_back(
+        "the sequence from " +
+        FormatFixed(seqs[s].impacts.empty() ? 0.0 : seqs[s].impacts.front().time_s, 4) + " s");
     append(RemoveUntimedMembers(&seqs[s], o, labels[s]));
     append(RemoveLowSnrMembers(&seqs[s], o, labels[s]));
     append(RemoveQuietEarlierMembers(&seqs[s], o, labels[s]));
@@ -254,13 +244,13 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
                        -1, "see the removals above; --start/--end around the drop"});
     } else if (!(ratio <= o.max_mean_ratio)) {
       keep[s] = false;
-      out.push_back({"not_shrinking",
-                     labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
-                         " impacts whose intervals do not shrink on average (mean ratio " +
-                         Fmt("%.4f", ratio) + " > max_mean_ratio = " + Fmt("%g", o.max_mean_ratio) +
-                         "): a metronome or repeated clicks, not a bouncing ball",
-                     -1,
-                     "nothing to do if these are not bounces; else --start/--end around the drop"});
+      out.push_back(
+          {"not_shrinking",
+           labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
+               " impacts whose intervals do not shrink on average (mean ratio " +
+               FormatFixed(ratio, 4) + " > max_mean_ratio = " + FormatGeneral(o.max_mean_ratio) +
+               "): a metronome or repeated clicks, not a bouncing ball",
+           -1, "nothing to do if these are not bounces; else --start/--end around the drop"});
     }
   }
   // Sequences far quieter than the loudest one at the same impact speed: not this ball.
@@ -274,10 +264,11 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
     keep[s] = false;
     out.push_back({"phantom_removed",
                    labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
-                       " impacts removed: at the same impact speed they are " + Fmt("%.1f", below) +
+                       " impacts removed: at the same impact speed they are " +
+                       FormatFixed(below, 1) +
                        " dB quieter than the loudest sequence of this recording, so they are not "
                        "this ball (sequence_level_tolerance_db = " +
-                       Fmt("%g", o.sequence_level_tolerance_db) + ")",
+                       FormatGeneral(o.sequence_level_tolerance_db) + ")",
                    -1,
                    "nothing to do if another ball or object made them; to analyse them, "
                    "--start/--end around them"});

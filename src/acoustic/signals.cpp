@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 
 namespace bouncecal {
 namespace {
@@ -22,12 +23,6 @@ constexpr double kChannelScoreMargin = 0.1;
 // band) then weighs like the clicks. Measured on a rendered steel drop before: recall 0.70 at
 // 44.1 kHz, 0.59 at 96 kHz, 0.24 at 192 kHz, and no sequence at 384 kHz.
 constexpr double kMaxAnalysisRateHz = 64000.0;
-
-std::string Fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
 
 }  // namespace
 
@@ -167,7 +162,7 @@ SignalDetection ChooseSignal(const std::vector<int>& choices,
     ChannelScore cs;
     cs.channel = choices[ci];
     if (!sig.sound) {
-      cs.failure = "silent (peak |x| = " + Fmt("%.3g", sig.peak) + ")";
+      cs.failure = "silent (peak |x| = " + FormatGeneral(sig.peak, 3) + ")";
     } else {
       any_sound = true;
       if (d.sequences.empty()) {
@@ -227,8 +222,8 @@ void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
   std::string others;
   for (const ChannelScore& c : r.channel_scores) {
     if (&c == used) continue;
-    others += (others.empty() ? "" : ", ") + name(c.channel) + " " + Fmt("%.1f", c.score) + " (" +
-              std::to_string(c.impacts) + " impacts)";
+    others += (others.empty() ? "" : ", ") + name(c.channel) + " " + FormatFixed(c.score, 1) +
+              " (" + std::to_string(c.impacts) + " impacts)";
     disagree = disagree || c.impacts == 0 ||
                std::fabs(c.first_impact_s - used->first_impact_s) > 0.005 ||
                std::abs(c.impacts - used->impacts) > std::max(2, used->impacts / 10);
@@ -237,8 +232,8 @@ void ChannelChoiceWarning(const DetectionResult& r, std::vector<Warning>* out) {
   out->push_back(
       {"channel_choice",
        "the channels disagree; " + name(r.channel) + " was used: its main sequence scores " +
-           Fmt("%.1f", used->score) + " (" + std::to_string(used->impacts) + " impacts from " +
-           Fmt("%.4f", used->first_impact_s) + " s), " + others +
+           FormatFixed(used->score, 1) + " (" + std::to_string(used->impacts) + " impacts from " +
+           FormatFixed(used->first_impact_s, 4) + " s), " + others +
            " (score = sum of the members' tracker weights)",
        -1, "listen to each (--channel N --click-track FILE.wav) and choose with --channel N"});
 }

@@ -29,6 +29,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/kinematics.hpp"
 #include "bouncecal/fit/scene_checks.hpp"
@@ -49,11 +50,12 @@ struct AnalyzeFlags {
   bool csv = false;
 };
 
-std::string Fixed(double v, int decimals, int width = 0) {
+// printf's "%*.*f", or "-" right-aligned for a value that is not finite.
+std::string FixedOrDash(double v, int decimals, int width = 0) {
   if (!std::isfinite(v)) return std::string(static_cast<size_t>(std::max(width - 1, 0)), ' ') + "-";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%*.*f", width, decimals, v);
-  return buf;
+  std::string out;
+  AppendFixed(&out, v, decimals, width);
+  return out;
 }
 
 struct Summary {
@@ -77,19 +79,19 @@ std::string EffectsLine(const GivenScene& gs, const Analysis& a) {
   std::ostringstream o;
   o << "scene: drag " << DragModelName(scene.effects.drag);
   if (scene.effects.drag != DragModel::kNone) {
-    o << " (terminal speed " << Fixed(a.terminal_speed_m_s, 2) << " m/s)";
+    o << " (terminal speed " << FixedOrDash(a.terminal_speed_m_s, 2) << " m/s)";
   }
   o << ", buoyancy " << (scene.effects.buoyancy ? "on" : "off") << ", contact duration "
     << (scene.effects.contact_duration ? "on" : "off") << "; g_eff "
-    << Fixed(a.effective_gravity_m_s2, 5) << " m/s^2; ball " << scene.ball.material << " "
-    << Fixed(scene.ball.diameter_m * 1000, 2) << " mm";
+    << FixedOrDash(a.effective_gravity_m_s2, 5) << " m/s^2; ball " << scene.ball.material << " "
+    << FixedOrDash(scene.ball.diameter_m * 1000, 2) << " mm";
   if (!gs.drop_given) {
     o << "; drop unknown (first e not computed: give --height or --impact-speed)";
   } else if (scene.drop.height_m) {
-    o << "; drop height " << Fixed(*scene.drop.height_m, 4) << " m";
-    if (a.height_sigma_m > 0.0) o << " +- " << Fixed(a.height_sigma_m, 4) << " m";
+    o << "; drop height " << FixedOrDash(*scene.drop.height_m, 4) << " m";
+    if (a.height_sigma_m > 0.0) o << " +- " << FixedOrDash(a.height_sigma_m, 4) << " m";
   } else if (scene.drop.impact_speed_m_s) {
-    o << "; first impact speed " << Fixed(*scene.drop.impact_speed_m_s, 4) << " m/s";
+    o << "; first impact speed " << FixedOrDash(*scene.drop.impact_speed_m_s, 4) << " m/s";
   }
   return o.str();
 }
@@ -150,7 +152,7 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   }
 
   o << file << (loaded.chosen.size() > 1 ? " sequence " + std::to_string(chosen) : std::string())
-    << ": " << Fixed(info.sample_rate_hz, 0) << " Hz, " << info.channels << " channel(s), "
+    << ": " << FixedOrDash(info.sample_rate_hz, 0) << " Hz, " << info.channels << " channel(s), "
     << (det.channel >= 0 ? "channel " + std::to_string(det.channel) : std::string("mix"))
     << " used; " << seq.impacts.size() << " impacts in the sequence (of " << det.sequences.size()
     << " sequence(s)), end: " << seq.end_reason << "\n";
@@ -158,7 +160,7 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   // "value +- sigma" pairs, "-" where unknown.
   auto pm = [](double v, double sigma, int decimals, int sigma_decimals) {
     if (!std::isfinite(v)) return std::string("-");
-    return Fixed(v, decimals) + " +- " + Fixed(sigma, sigma_decimals);
+    return FixedOrDash(v, decimals) + " +- " + FixedOrDash(sigma, sigma_decimals);
   };
   const bool show_contact = scene.effects.contact_duration;
   char head[256];
@@ -173,28 +175,26 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   for (const Bounce& b : an.bounces) {
     char line[512];
     std::snprintf(line, sizeof line, "%4d %11.6f %8s %11s  %-21s %-21s %-20s %-20s%s%s\n", b.index,
-                  b.time_s, Fixed(b.time_sigma_s * 1e6, 2).c_str(), Fixed(b.interval_s, 6).c_str(),
+                  b.time_s, FixedOrDash(b.time_sigma_s * 1e6, 2).c_str(),
+                  FixedOrDash(b.interval_s, 6).c_str(),
                   pm(b.v_in_m_s, b.v_in_sigma_m_s, 5, 5).c_str(),
                   pm(b.v_out_m_s, b.v_out_sigma_m_s, 5, 5).c_str(),
                   pm(b.e, b.e_total_sigma, 5, 6).c_str(), pm(b.eta, b.eta_sigma, 5, 5).c_str(),
-                  show_contact ? ("  " + Fixed(b.contact_s * 1e6, 1, 10)).c_str() : "",
+                  show_contact ? ("  " + FixedOrDash(b.contact_s * 1e6, 1, 10)).c_str() : "",
                   b.irregular ? "  irregular" : "");
     o << rstrip(line);
   }
   o << "\nsummary: " << an.bounces.size() << " impacts, " << sum.n_with_e << " with e";
   if (sum.n_with_e > 0) {
-    o << "; e from " << Fixed(sum.e_min, 4) << " to " << Fixed(sum.e_max, 4);
+    o << "; e from " << FixedOrDash(sum.e_min, 4) << " to " << FixedOrDash(sum.e_max, 4);
   }
   if (an.first_e) {
-    o << "; first impact e = " << Fixed(*an.first_e, 5) << " +- " << Fixed(*an.first_e_sigma, 5);
+    o << "; first impact e = " << FixedOrDash(*an.first_e, 5) << " +- "
+      << FixedOrDash(*an.first_e_sigma, 5);
   }
   o << "\n";
   if (an.scatter_e) {
-    auto g2 = [](double v) {
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "%.2g", v);
-      return std::string(buf);
-    };
+    auto g2 = [](double v) { return FormatGeneral(v, 2); };
     o << "scatter of e from bounce to bounce: ";
     if (*an.scatter_e > 0.0) {
       o << g2(*an.scatter_e) << " +- " << g2(*an.scatter_e_sigma);
@@ -206,7 +206,8 @@ void RunOne(const AnalyzeFlags& flags, const GivenScene& gs, const AnalysisOptio
   if (an.mean_eta_first3) {
     o << "mean eta of the first three (impacts";
     for (int k : an.mean_eta_indices) o << " " << k;
-    o << ") = " << Fixed(*an.mean_eta_first3, 5) << " +- " << Fixed(*an.mean_eta_first3_sigma, 5);
+    o << ") = " << FixedOrDash(*an.mean_eta_first3, 5) << " +- "
+      << FixedOrDash(*an.mean_eta_first3_sigma, 5);
     // The seed paper's number is for its own experiment only: a steel ball on copper that the
     // user stated (the built-in defaults are the seed's materials; they prove nothing).
     if (gs.Given("ball.material") && gs.Given("surface.material") &&

@@ -23,6 +23,7 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/fit/calibrate.hpp"
 #include "bouncecal/fit/scene_checks.hpp"
@@ -69,14 +70,6 @@ std::vector<std::string> Inputs(const CalibrateArgs& a) {
 }
 
 // A number as printed in text (assumed values): `prec` significant digits, "" if unknown.
-std::string Num(double v, int prec) {
-  if (!std::isfinite(v)) return "";
-  std::ostringstream os;
-  os.precision(prec);
-  os << v;
-  return os.str();
-}
-
 // The drops (chosen sequences) of one recording / --impacts pair, as calibration inputs.
 std::vector<CalibrationInput> Detect(const std::pair<std::string, std::string>& input,
                                      const DetectFlags& flags) {
@@ -298,7 +291,8 @@ std::vector<Assumed> AssumedFor(const GivenScene& gs, const Calibration& c) {
   std::vector<Assumed> out = AssumedValues(gs, true);
   for (const auto& p : c.parameters) {
     if (p.fixed && !gs.Given("law.parameters." + p.name)) {
-      out.push_back({"law.parameters." + p.name, Num(p.value, 7) + " " + p.unit,
+      out.push_back({"law.parameters." + p.name,
+                     (std::isfinite(p.value) ? FormatGeneral(p.value, 7) : "") + " " + p.unit,
                      "held at the law's default, not fitted"});
     }
   }

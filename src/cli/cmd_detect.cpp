@@ -27,6 +27,7 @@
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/core/atomic_file.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "commands.hpp"
 #include "detect_flags.hpp"
@@ -45,12 +46,6 @@ struct DetectArgs {
   std::string click_track;
   bool force = false;
 };
-
-std::string Format(const char* fmt, double a) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, fmt, a);
-  return buf;
-}
 
 void PrintCsv(const std::string& file, const DetectionResult& r, bool with_file) {
   for (std::size_t s = 0; s < r.sequences.size(); ++s) {
@@ -94,7 +89,7 @@ void PrintTable(const std::string& file, const LoadedRecording& l) {
     for (std::size_t k = 0; k < q.impacts.size(); ++k) {
       const Impact& i = q.impacts[k];
       const std::string interval =
-          k == 0 ? "-" : Format("%.6f", i.time_s - q.impacts[k - 1].time_s);
+          k == 0 ? "-" : FormatFixed(i.time_s - q.impacts[k - 1].time_s, 6);
       std::printf("  %3zu %12.6f %9.2f %11s %9.4f %7.1f %6.2f%s\n", k, i.time_s, i.sigma_s * 1e6,
                   interval.c_str(), i.amplitude, i.snr_db, i.score, i.clipped ? "  clipped" : "");
       for (int m : q.missed_after)
@@ -120,7 +115,7 @@ void Run(const DetectArgs& a) {
   if (a.json && a.csv) throw Error(ErrorCode::kUsage, "--json and --csv exclude each other");
   if (!(a.hop_ms >= 0.0) || a.hop_ms > 50.0)
     throw Error(ErrorCode::kUsage,
-                "--hop-ms " + Format("%g", a.hop_ms) + ": must be in [0, 50] (0 = auto)");
+                "--hop-ms " + FormatGeneral(a.hop_ms) + ": must be in [0, 50] (0 = auto)");
   MakeDetectOptions(a.detect);  // flag errors before any work
   const auto inputs = PairInputs(a.files, a.detect);
   if (!a.click_track.empty()) {

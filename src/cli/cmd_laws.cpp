@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/schema.hpp"
 #include "bouncecal/physics/law_registry.hpp"
@@ -29,12 +30,11 @@ struct LawsFlags {
   std::string name;
 };
 
-std::string Fmt(double v) {
+// A default or a bound; the registry writes an unbounded side as +-1e300.
+std::string BoundText(double v) {
   if (v <= -1e300) return "-inf";
   if (v >= 1e300) return "inf";
-  std::ostringstream os;
-  os << std::setprecision(6) << v;
-  return os.str();
+  return FormatGeneral(v);
 }
 
 void Run(const LawsFlags& f) {
@@ -77,8 +77,8 @@ void Run(const LawsFlags& f) {
          << "role\n";
     for (const ParameterSpec& s : law->Parameters()) {
       text << "  " << std::setw(8) << s.name << std::setw(10) << s.unit << std::setw(12)
-           << Fmt(s.default_value) << std::setw(24)
-           << ("[" + Fmt(s.lower) + ", " + Fmt(s.upper) + "]")
+           << BoundText(s.default_value) << std::setw(24)
+           << ("[" + BoundText(s.lower) + ", " + BoundText(s.upper) + "]")
            << (s.damping ? "damping (fitted)" : "held") << "\n";
     }
     std::string forms;

@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/io/param_resolved.hpp"
 #include "bouncecal/io/schema.hpp"
@@ -57,69 +58,6 @@ void PrintCsv(const Simulation& s) {
   }
 }
 
-// One field of the human table followed by a space: what printf's "%<width>.<precision>f" (or
-// "g") prints, right-aligned in width. std::to_chars with a precision gives printf's digits by
-// definition ([charconv.to.chars]: "as if by printf in the C locale"), without printf's
-// format parsing and multi-precision arithmetic: printf was 15 % of `simulate`'s instructions
-// for the 10 000 rows of the Hunt-Crossley laws (callgrind). A number too long for the buffer
-// goes through snprintf.
-// Fixed notation by integer arithmetic where that is provably what printf prints: value 10^p
-// (one rounding, relative error <= 2^-53) below 1e12 is within 1.2e-4 of the exact decimal
-// product, so when its fraction is farther than 1e-3 from one half, the correctly rounded
-// integer is its nearest integer. Otherwise (and for nan, inf, huge values) false.
-bool FixedByIntegers(double value, int precision, char* buffer, size_t* length) {
-  static constexpr double kPowers[] = {1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
-  if (precision < 1 || precision > 9 || !(std::abs(value) < 1e3)) return false;
-  const double scaled = std::abs(value) * kPowers[precision];
-  const double below = std::floor(scaled);
-  if (std::abs(scaled - below - 0.5) <= 1e-3) return false;
-  auto digits = static_cast<unsigned long long>(scaled - below > 0.5 ? below + 1.0 : below);
-  char reversed[32];
-  int n = 0;
-  for (int i = 0; i < precision; ++i, digits /= 10)
-    reversed[n++] = static_cast<char>('0' + digits % 10);
-  reversed[n++] = '.';
-  do {
-    reversed[n++] = static_cast<char>('0' + digits % 10);
-    digits /= 10;
-  } while (digits > 0);
-  size_t k = 0;
-  if (std::signbit(value)) buffer[k++] = '-';
-  while (n > 0) buffer[k++] = reversed[--n];
-  *length = k;
-  return true;
-}
-
-void AppendNumber(std::string& row, double value, int width, int precision,
-                  std::chars_format format) {
-  char buffer[64];
-  size_t fixed_length = 0;
-  if (format == std::chars_format::fixed &&
-      FixedByIntegers(value, precision, buffer, &fixed_length)) {
-    const size_t w = static_cast<size_t>(width);
-    if (fixed_length < w) row.append(w - fixed_length, ' ');
-    row.append(buffer, fixed_length);
-    row.push_back(' ');
-    return;
-  }
-  const std::to_chars_result r =
-      std::to_chars(buffer, buffer + sizeof buffer, value, format, precision);
-  std::string wide;
-  std::string_view text;
-  if (r.ec == std::errc()) {
-    text = std::string_view(buffer, static_cast<size_t>(r.ptr - buffer));
-  } else {
-    const char* spec = format == std::chars_format::fixed ? "%.*f" : "%.*g";
-    wide.resize(static_cast<size_t>(std::snprintf(nullptr, 0, spec, precision, value)) + 1);
-    wide.resize(
-        static_cast<size_t>(std::snprintf(wide.data(), wide.size(), spec, precision, value)));
-    text = wide;
-  }
-  const size_t w = static_cast<size_t>(width);
-  if (text.size() < w) row.append(w - text.size(), ' ');
-  row.append(text);
-  row.push_back(' ');
-}
 template <class Integer>
 void AppendInteger(std::string& row, Integer value, int width) {
   char buffer[32];
@@ -138,19 +76,27 @@ void PrintHuman(const ContactLaw& law, const std::vector<double>& p, const Simul
   }
   std::printf("\n%5s %14s %11s %11s %9s %11s %12s %11s %6s\n", "k", "time_s", "v_in_m_s",
               "v_out_m_s", "e", "contact_us", "overlap_um", "force_n", "steps");
-  // "%5zu %14.9f %11.6f %11.6f %9.6f %11.4f %12.5f %11.4g %6d\n", written with to_chars.
+  // "%5zu %14.9f %11.6f %11.6f %9.6f %11.4f %12.5f %11.4g %6d\n" without printf's format parsing
+  // (10 000 rows for the Hunt-Crossley laws).
   std::string row;
   for (size_t k = 0; k < s.impacts.size(); ++k) {
     const SimImpact& i = s.impacts[k];
     row.clear();
     AppendInteger(row, k, 5);
-    AppendNumber(row, i.time_s, 14, 9, std::chars_format::fixed);
-    AppendNumber(row, i.v_in_m_s, 11, 6, std::chars_format::fixed);
-    AppendNumber(row, i.v_out_m_s, 11, 6, std::chars_format::fixed);
-    AppendNumber(row, Restitution(i), 9, 6, std::chars_format::fixed);
-    AppendNumber(row, i.contact_s * 1e6, 11, 4, std::chars_format::fixed);
-    AppendNumber(row, i.peak_overlap_m * 1e6, 12, 5, std::chars_format::fixed);
-    AppendNumber(row, i.peak_force_n, 11, 4, std::chars_format::general);
+    AppendFixed(&row, i.time_s, 9, 14);
+    row.push_back(' ');
+    AppendFixed(&row, i.v_in_m_s, 6, 11);
+    row.push_back(' ');
+    AppendFixed(&row, i.v_out_m_s, 6, 11);
+    row.push_back(' ');
+    AppendFixed(&row, Restitution(i), 6, 9);
+    row.push_back(' ');
+    AppendFixed(&row, i.contact_s * 1e6, 4, 11);
+    row.push_back(' ');
+    AppendFixed(&row, i.peak_overlap_m * 1e6, 5, 12);
+    row.push_back(' ');
+    AppendGeneral(&row, i.peak_force_n, 4, 11);
+    row.push_back(' ');
     AppendInteger(row, i.steps, 6);
     row.back() = '\n';
     std::fwrite(row.data(), 1, row.size(), stdout);
@@ -192,15 +138,13 @@ std::string LawLabel(const Scene& scene, const ContactLaw& law, const std::vecto
   std::string label = "law " + Abbreviate(law.Name());
   if (!scene.law.expression.empty()) return label + " '" + Abbreviate(scene.law.expression) + "'";
   for (size_t i = 0; i < p.size(); ++i) {
-    char value[32];
-    std::snprintf(value, sizeof value, "%g", p[i]);
-    label += (i == 0 ? " (" : ", ") + law.Parameters()[i].name + " = " + value;
+    label += (i == 0 ? " (" : ", ") + law.Parameters()[i].name + " = " + FormatGeneral(p[i]);
   }
   return label + (p.empty() ? "" : ")");
 }
 
 // A simulation the integrator gave up on, or with a non-finite number anywhere, is not a
-// result: exit 9 naming the law and its parameters (README "Exit codes"), never "inf"/"nan" or
+// result: exit 9 naming the law and its parameters (docs/cli.md "Exit codes"), never "inf"/"nan" or
 // a JSON null where a number is documented.
 void CheckUsable(const Scene& scene, const ContactLaw& law, const std::vector<double>& p,
                  const Simulation& sim) {

@@ -4,18 +4,11 @@
 #include <cstdio>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "output.hpp"
 
 namespace bouncecal::cli {
-namespace {
-
-std::string Num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 void AddDetectFlags(CLI::App* sub, DetectFlags* f) {
   sub->add_option("--channel", f->channel,
@@ -44,19 +37,21 @@ DetectOptions MakeDetectOptions(const DetectFlags& f) {
   o.channel = ParseChannelSelection(f.channel);
   if (f.start_s) {
     if (!std::isfinite(*f.start_s) || *f.start_s < 0.0)
-      throw Error(ErrorCode::kUsage, "--start " + Num(*f.start_s) + ": must be a time >= 0 s");
+      throw Error(ErrorCode::kUsage,
+                  "--start " + FormatGeneral(*f.start_s) + ": must be a time >= 0 s");
     o.start_s = *f.start_s;
   }
   if (f.end_s) {
     if (!std::isfinite(*f.end_s) || !(*f.end_s > o.start_s))
-      throw Error(ErrorCode::kUsage, "--end " + Num(*f.end_s) + ": must be a time after --start (" +
-                                         Num(o.start_s) + " s)");
+      throw Error(ErrorCode::kUsage, "--end " + FormatGeneral(*f.end_s) +
+                                         ": must be a time after --start (" +
+                                         FormatGeneral(o.start_s) + " s)");
     o.end_s = *f.end_s;
   }
   if (f.min_snr_db) {
     if (!std::isfinite(*f.min_snr_db) || std::fabs(*f.min_snr_db) > 120.0)
       throw Error(ErrorCode::kUsage,
-                  "--min-snr-db " + Num(*f.min_snr_db) + ": must be in [-120, 120] dB");
+                  "--min-snr-db " + FormatGeneral(*f.min_snr_db) + ": must be in [-120, 120] dB");
     o.min_snr_db = *f.min_snr_db;
   }
   if (f.threads < 0 || f.threads > 256)

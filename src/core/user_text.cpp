@@ -103,16 +103,6 @@ std::string Abbreviate(std::string_view s, std::size_t max_chars) {
   return text.substr(0, i) + "… (" + std::to_string(s.size()) + " bytes)";
 }
 
-std::string ShortestNumber(double v) {
-  char buf[64];
-  for (int prec = 1; prec <= 17; ++prec) {
-    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
-    if (std::strtod(buf, nullptr) == v) return buf;
-  }
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
 namespace {
 bool NameChar(char c) {
   return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';

@@ -29,9 +29,6 @@
 namespace bouncecal {
 namespace {
 
-std::string Num(double v) { return ShortestNumber(v); }
-std::string Fmt(double v) { return fit_text::Fmt(v, 4); }
-
 // The time step starts at the shortest contact time / 10 (the common DEM rule; seed 002's
 // packing used t_c/4.5) and is halved at most 6 times until its e error is within budget.
 constexpr double kStepsPerContactStart = 10.0;
@@ -95,7 +92,7 @@ double LammpsTsujiInput(double alpha) {
   // LammpsTsujiPolynomial falls from 1.2728 at e = 0 to 0 at e = 1: bisection.
   if (!(alpha >= 0.0 && alpha <= LammpsTsujiPolynomial(0.0))) {
     throw Error(ErrorCode::kBadParameter,
-                "lammps: Tsuji alpha = " + Num(alpha) +
+                "lammps: Tsuji alpha = " + FormatShortest(alpha) +
                     " is outside LAMMPS' alpha(e) polynomial range "
                     "[0, 1.2728] (restitution too low for damping tsuji)");
   }
@@ -123,11 +120,12 @@ ColumnFit MakeColumnFit(const std::string& params_path, const Mapping& m, const 
     f.e_error = std::max(f.e_error, std::abs(f.restitution - e_fit[i]));
   }
   f.notes.push_back(params_path + ": " + m.law + " mapped to " + m.native_law + " [" + m.kind +
-                    "], e = " + Fmt(f.restitution) +
+                    "], e = " + FormatGeneral(f.restitution, 4) +
                     " carried to every pair as Tsuji's alpha; "
                     "|e - e_fit| <= " +
-                    Fmt(f.e_error) + " over " + Fmt(m.speeds_m_s.front()) + " .. " +
-                    Fmt(m.speeds_m_s.back()) + " m/s");
+                    FormatGeneral(f.e_error, 4) + " over " +
+                    FormatGeneral(m.speeds_m_s.front(), 4) + " .. " +
+                    FormatGeneral(m.speeds_m_s.back(), 4) + " m/s");
   return f;
 }
 
@@ -195,12 +193,12 @@ ColumnPlan PlanColumn(const ColumnOptions& o, ExportTarget target, const ColumnF
     p.time_step_e_error = MaxTimeStepError(pair, body, speeds, dt, 0.0);
   }
   p.time_step_s = dt;
-  p.time_step_choice = "shortest contact time " + Fmt(tc) + " s (smallest beads at " +
-                       Fmt(speeds[1]) + " m/s, free fall from the column top) / " +
-                       Fmt(kStepsPerContactStart * std::pow(2.0, halvings)) +
-                       ": leapfrog e error " + Fmt(p.time_step_e_error) + " (budget " +
-                       Fmt(o.dt_e_error) + ") at " + Fmt(speeds[0]) + " and " + Fmt(speeds[1]) +
-                       " m/s";
+  p.time_step_choice = "shortest contact time " + FormatGeneral(tc, 4) + " s (smallest beads at " +
+                       FormatGeneral(speeds[1], 4) + " m/s, free fall from the column top) / " +
+                       FormatGeneral(kStepsPerContactStart * std::pow(2.0, halvings), 4) +
+                       ": leapfrog e error " + FormatGeneral(p.time_step_e_error, 4) + " (budget " +
+                       FormatGeneral(o.dt_e_error, 4) + ") at " + FormatGeneral(speeds[0], 4) +
+                       " and " + FormatGeneral(speeds[1], 4) + " m/s";
   p.settle_steps = static_cast<long>(std::ceil(p.settle_max_s / dt));
   p.collapse_steps = static_cast<long>(std::ceil(p.max_collapse_s / dt));
   p.dump_every = std::max<long>(1, std::lround(p.dump_interval_s / dt));

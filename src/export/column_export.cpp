@@ -17,8 +17,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string Fmt(double v) { return fit_text::Fmt(v, 4); }
-
 nlohmann::json ContactJson(const ColumnContact& c) {
   return {{"restitution", c.restitution},
           {"e_error", c.e_error},
@@ -75,10 +73,11 @@ void CheckError(const ColumnFit& f, const ExportOptions& o, const std::string& t
   if (o.column.restitution > 0.0 || f.e_error <= o.max_e_error || o.allow_approximation) return;
   throw Error(ErrorCode::kBadParameter,
               f.params_path + ": law " + f.mapping.law + " cannot be carried to the column in " +
-                  target + " within e error " + Num(o.max_e_error) + ": the native law (" +
-                  f.mapping.native_law + ") as a constant e = " + Num(f.restitution) +
-                  " is off by " + Num(f.e_error) + " over " + Num(f.mapping.speeds_m_s.front()) +
-                  " .. " + Num(f.mapping.speeds_m_s.back()) +
+                  target + " within e error " + FormatShortest(o.max_e_error) +
+                  ": the native law (" + f.mapping.native_law + ") as a constant e = " +
+                  FormatShortest(f.restitution) + " is off by " + FormatShortest(f.e_error) +
+                  " over " + FormatShortest(f.mapping.speeds_m_s.front()) + " .. " +
+                  FormatShortest(f.mapping.speeds_m_s.back()) +
                   " m/s; not exported (ExportOptions::allow_approximation accepts it)");
 }
 
@@ -87,35 +86,40 @@ void CheckError(const ColumnFit& f, const ExportOptions& o, const std::string& t
 std::vector<std::string> ColumnComments(const ColumnPlan& p) {
   std::vector<std::string> c;
   auto contact = [&c](const ColumnContact& k, const std::string& from) {
-    c.push_back(k.name + ": e = " + Fmt(k.restitution) + " (" + from + ", e error " +
-                Fmt(k.e_error) + "), Tsuji alpha = " + Fmt(k.alpha) + ", kn = " + Fmt(k.kn_pa) +
-                " Pa, kt = " + Fmt(k.kt_pa) + " Pa, contact time " + Fmt(k.contact_time_s) + " s");
+    c.push_back(k.name + ": e = " + FormatGeneral(k.restitution, 4) + " (" + from + ", e error " +
+                FormatGeneral(k.e_error, 4) + "), Tsuji alpha = " + FormatGeneral(k.alpha, 4) +
+                ", kn = " + FormatGeneral(k.kn_pa, 4) + " Pa, kt = " + FormatGeneral(k.kt_pa, 4) +
+                " Pa, contact time " + FormatGeneral(k.contact_time_s, 4) + " s");
   };
   c.push_back(
       "seed 003 (Fei et al. 2016) granular column: box 0.4 x 0.2 m, gate at x = 0.1 m, "
       "column 0.1 x 0.2 x 0.18 m (a = 1.8)");
-  c.push_back("beads: d normal " + Fmt(p.d_mean_m) + " +- " + Fmt(p.d_sigma_m) + " m within " +
-              Fmt(p.d_min_m) + " .. " + Fmt(p.d_max_m) + " (the paper's 4.9-5.9 mm / scale " +
-              Fmt(p.scale) + "), rho 2200 kg/m^3, E 5.5 GPa, nu " + Fmt(p.poisson_ratio) +
-              " (assumed), " + std::to_string(p.poured_beads) + " poured, ~" +
-              std::to_string(p.expected_beads) + " after the trim");
-  c.push_back("friction mu = " + Fmt(p.friction) + " (repose angle 21 deg); q_phi = " +
-              Fmt(p.q_phi) + " (seed 003 eq. 11, for MPM/TGT comparisons)");
+  c.push_back("beads: d normal " + FormatGeneral(p.d_mean_m, 4) + " +- " +
+              FormatGeneral(p.d_sigma_m, 4) + " m within " + FormatGeneral(p.d_min_m, 4) + " .. " +
+              FormatGeneral(p.d_max_m, 4) + " (the paper's 4.9-5.9 mm / scale " +
+              FormatGeneral(p.scale, 4) + "), rho 2200 kg/m^3, E 5.5 GPa, nu " +
+              FormatGeneral(p.poisson_ratio, 4) + " (assumed), " + std::to_string(p.poured_beads) +
+              " poured, ~" + std::to_string(p.expected_beads) + " after the trim");
+  c.push_back("friction mu = " + FormatGeneral(p.friction, 4) + " (repose angle 21 deg); q_phi = " +
+              FormatGeneral(p.q_phi, 4) + " (seed 003 eq. 11, for MPM/TGT comparisons)");
   c.push_back(
       "rolling friction (seed 003 eq. 13, elastic-plastic): limit torque mu_r R_mean F_n, "
       "mu_r = " +
-      Fmt(p.rolling_friction) + "; stiffness k_r = " + Fmt(p.rolling_stiffness_nm_rad) +
+      FormatGeneral(p.rolling_friction, 4) +
+      "; stiffness k_r = " + FormatGeneral(p.rolling_stiffness_nm_rad, 4) +
       " N m/rad (k_t R*^2 at the column's base load)");
   c.push_back("floor: " + std::to_string(p.floor_spheres) + " fixed spheres of " +
-              Fmt(p.floor_diameter_m) + " m (the sandpaper); walls and gate: plastic, E " +
-              Fmt(p.wall_youngs_pa) + " Pa, nu " + Fmt(p.wall_poisson));
+              FormatGeneral(p.floor_diameter_m, 4) +
+              " m (the sandpaper); walls and gate: plastic, E " +
+              FormatGeneral(p.wall_youngs_pa, 4) + " Pa, nu " + FormatGeneral(p.wall_poisson, 4));
   contact(p.bead_bead, p.bead_fit.params_path.empty() ? "given" : p.bead_fit.params_path);
   contact(p.bead_floor, p.wall_fit.params_path.empty() ? "given" : p.wall_fit.params_path);
   contact(p.bead_wall, p.wall_fit.params_path.empty() ? "given" : p.wall_fit.params_path);
-  c.push_back("time step " + Fmt(p.time_step_s) + " s: " + p.time_step_choice);
-  c.push_back("at rest: rms bead speed < " + Fmt(p.rest_speed_m_s) +
+  c.push_back("time step " + FormatGeneral(p.time_step_s, 4) + " s: " + p.time_step_choice);
+  c.push_back("at rest: rms bead speed < " + FormatGeneral(p.rest_speed_m_s, 4) +
               " m/s (a tenth of a mean diameter per 25 fps frame); settle <= " +
-              Fmt(p.settle_max_s) + " s, collapse <= " + Fmt(p.max_collapse_s) + " s");
+              FormatGeneral(p.settle_max_s, 4) +
+              " s, collapse <= " + FormatGeneral(p.max_collapse_s, 4) + " s");
   for (const std::string& n : p.notes) c.push_back("note: " + n);
   return c;
 }
@@ -150,7 +154,7 @@ ExportResult ExportColumn(const std::string& params_path, const std::string& out
     for (const std::string& n : wall_fit.notes) r.notes.push_back("bead-wall: " + n);
   }
   if (co.restitution > 0.0) {
-    r.notes.push_back("restitution " + Num(co.restitution) +
+    r.notes.push_back("restitution " + FormatShortest(co.restitution) +
                       " given for every pair: the fits' damping is not used");
   }
   r.native_law =
@@ -173,10 +177,10 @@ ExportResult ExportColumn(const std::string& params_path, const std::string& out
   r.run_time_s = plan.settle_max_s + plan.max_collapse_s;
   r.trace_every = static_cast<int>(plan.dump_every);
   r.column = PlanJson(plan);
-  r.column["q_phi_note"] = "q_phi = " + Fmt(plan.q_phi) +
+  r.column["q_phi_note"] = "q_phi = " + FormatGeneral(plan.q_phi, 4) +
                            " from the 21 deg friction angle "
                            "(seed 003 eq. 11), beside mu = " +
-                           Num(plan.friction);
+                           FormatShortest(plan.friction);
 
   // Stage 3: the files, each written atomically, only now.
   std::vector<std::string> comments = ColumnComments(plan);

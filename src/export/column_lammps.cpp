@@ -23,10 +23,11 @@ namespace {
 // "hertz kn e damping tsuji tangential mindlin kt x mu rolling sds k 0 mu_r" for one pair.
 std::string Granular(const ColumnContact& c) {
   std::ostringstream os;
-  os << "hertz " << Num(c.kn_pa) << " " << Num(c.e_input_lammps)
-     << " damping tsuji tangential mindlin " << Num(c.kt_pa) << " "
-     << Num(c.tangential_damping_ratio) << " " << Num(ColumnPaper::kFriction) << " rolling sds "
-     << Num(c.rolling_k_lammps) << " 0 " << Num(c.rolling_mu_lammps);
+  os << "hertz " << FormatShortest(c.kn_pa) << " " << FormatShortest(c.e_input_lammps)
+     << " damping tsuji tangential mindlin " << FormatShortest(c.kt_pa) << " "
+     << FormatShortest(c.tangential_damping_ratio) << " " << FormatShortest(ColumnPaper::kFriction)
+     << " rolling sds " << FormatShortest(c.rolling_k_lammps) << " 0 "
+     << FormatShortest(c.rolling_mu_lammps);
   return os.str();
 }
 
@@ -37,9 +38,9 @@ std::string ColumnDataText(const ColumnPlan& p, const std::vector<ColumnSphere>&
   os << "bouncecal column (seed 003): " << p.poured_beads << " beads poured at random (loose), "
      << p.floor_spheres << " fixed floor spheres; atom-ID type diameter density x y z (SI)\n\n"
      << spheres.size() << " atoms\n2 atom types\n\n"
-     << "0 " << Num(ColumnPaper::kBoxLength_m) << " xlo xhi\n"
-     << "0 " << Num(ColumnPaper::kBoxWidth_m) << " ylo yhi\n"
-     << "0 " << Num(p.box_top_m) << " zlo zhi\n\nAtoms # sphere\n\n";
+     << "0 " << FormatShortest(ColumnPaper::kBoxLength_m) << " xlo xhi\n"
+     << "0 " << FormatShortest(ColumnPaper::kBoxWidth_m) << " ylo yhi\n"
+     << "0 " << FormatShortest(p.box_top_m) << " zlo zhi\n\nAtoms # sphere\n\n";
   char line[160];
   for (size_t i = 0; i < spheres.size(); ++i) {
     const ColumnSphere& s = spheres[i];
@@ -67,12 +68,13 @@ std::string LammpsColumnDeck(const ColumnPlan& p, const std::vector<std::string>
      << "read_data column.data\n"
      << "group beads type 1\n"
      << "group floor type 2\n"
-     << "neighbor " << Num(0.1 * p.d_mean_m) << " bin\n"
+     << "neighbor " << FormatShortest(0.1 * p.d_mean_m) << " bin\n"
      << "neigh_modify delay 0 every 1 check yes exclude type 2 2\n"
      << "pair_style granular\n"
-     << "# bead-bead: e = " << Num(p.bead_bead.restitution) << " (alpha " << Num(p.bead_bead.alpha)
-     << "); bead-floor and walls: e = " << Num(p.bead_wall.restitution) << " (alpha "
-     << Num(p.bead_wall.alpha) << ")\n"
+     << "# bead-bead: e = " << FormatShortest(p.bead_bead.restitution) << " (alpha "
+     << FormatShortest(p.bead_bead.alpha)
+     << "); bead-floor and walls: e = " << FormatShortest(p.bead_wall.restitution) << " (alpha "
+     << FormatShortest(p.bead_wall.alpha) << ")\n"
      << "pair_coeff 1 1 " << Granular(p.bead_bead) << "\n"
      << "pair_coeff 1 2 " << Granular(p.bead_floor) << "\n"
      << "pair_coeff 2 2 " << Granular(p.bead_floor) << "\n"
@@ -82,11 +84,14 @@ std::string LammpsColumnDeck(const ColumnPlan& p, const std::vector<std::string>
      << "fix gravity beads gravity 9.8 vector 0 0 -1\n"
      << "variable wall string \"granular " << Granular(p.bead_wall) << "\"\n"
      << "fix wall_x0 beads wall/gran ${wall} xplane 0.0 NULL\n"
-     << "fix wall_x1 beads wall/gran ${wall} xplane NULL " << Num(ColumnPaper::kBoxLength_m) << "\n"
-     << "fix wall_y beads wall/gran ${wall} yplane 0.0 " << Num(ColumnPaper::kBoxWidth_m) << "\n"
+     << "fix wall_x1 beads wall/gran ${wall} xplane NULL "
+     << FormatShortest(ColumnPaper::kBoxLength_m) << "\n"
+     << "fix wall_y beads wall/gran ${wall} yplane 0.0 " << FormatShortest(ColumnPaper::kBoxWidth_m)
+     << "\n"
      << "fix wall_z beads wall/gran ${wall} zplane 0.0 NULL\n"
-     << "fix gate beads wall/gran ${wall} xplane NULL " << Num(ColumnPaper::kColumnLength_m) << "\n"
-     << "timestep " << Num(p.time_step_s) << "\n"
+     << "fix gate beads wall/gran ${wall} xplane NULL "
+     << FormatShortest(ColumnPaper::kColumnLength_m) << "\n"
+     << "timestep " << FormatShortest(p.time_step_s) << "\n"
      << "variable settle_steps index " << p.settle_steps << "\n"
      << "variable collapse_steps index " << p.collapse_steps << "\n"
      << "variable t equal step*dt\n"
@@ -95,16 +100,16 @@ std::string LammpsColumnDeck(const ColumnPlan& p, const std::vector<std::string>
      << "thermo_style custom step atoms v_t ke c_rke v_vrms\n"
      << "thermo " << thermo_every << "\n"
      << "# 1. settle behind the gate: at rest when the rms bead speed is below "
-     << Num(p.rest_speed_m_s) << " m/s, after the pour's free fall (" << Num(p.settle_min_s)
-     << " s)\n"
-     << "variable settled equal \"(v_t > " << Num(p.settle_min_s) << ") && (v_vrms < "
-     << Num(p.rest_speed_m_s) << ")\"\n"
+     << FormatShortest(p.rest_speed_m_s) << " m/s, after the pour's free fall ("
+     << FormatShortest(p.settle_min_s) << " s)\n"
+     << "variable settled equal \"(v_t > " << FormatShortest(p.settle_min_s) << ") && (v_vrms < "
+     << FormatShortest(p.rest_speed_m_s) << ")\"\n"
      << "fix settle all halt 100 v_settled == 1 error continue\n"
      << "run ${settle_steps}\n"
      << "unfix settle\n"
      << "print \"column: settled after $(step) steps, top $(bound(beads,zmax)) m\"\n"
      << "# 2. trim at the column height (bead centres above H - d_mean/2)\n"
-     << "region above block INF INF INF INF " << Num(h_trim) << " INF units box\n"
+     << "region above block INF INF INF INF " << FormatShortest(h_trim) << " INF units box\n"
      << "delete_atoms region above\n"
      << "print \"column: beads $(count(beads)) floor $(count(floor)) box $(xlo) $(xhi) $(ylo) "
         "$(yhi) $(zlo) $(zhi)\"\n"
@@ -113,8 +118,8 @@ std::string LammpsColumnDeck(const ColumnPlan& p, const std::vector<std::string>
      << "reset_timestep 0\n"
      << "fix balance all balance " << thermo_every << " 1.1 shift x 10 1.05\n"
      << "dump front beads custom " << p.dump_every << " column.dump id x y z radius\n"
-     << "variable rest equal \"(v_t > " << Num(ColumnPaper::kFrameInterval_s) << ") && (v_vrms < "
-     << Num(p.rest_speed_m_s) << ")\"\n"
+     << "variable rest equal \"(v_t > " << FormatShortest(ColumnPaper::kFrameInterval_s)
+     << ") && (v_vrms < " << FormatShortest(p.rest_speed_m_s) << ")\"\n"
      << "fix rest all halt 100 v_rest == 1 error continue\n"
      << "run ${collapse_steps}\n"
      << "undump front\n"

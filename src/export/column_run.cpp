@@ -182,14 +182,16 @@ std::string ColumnRunScript(const ColumnPlan& p) {
      << "{\n"
      << "  printf '{\\n  \"schema\": \"bouncecal.column/1\",\\n  \"simulator\": \"" << prog
      << "\",\\n'\n"
-     << "  awk -v dt=" << Num(p.time_step_s) << " -v every=" << Num(p.dump_interval_s)
-     << " -v w=" << Num(p.d_mean_m) << " -v width=" << Num(ColumnPaper::kBoxWidth_m)
-     << " -v h_col=" << Num(ColumnPaper::kColumnHeight_m)
-     << " -v frame=" << Num(ColumnPaper::kFrameInterval_s)
-     << " -v frames=13 -v li=" << Num(ColumnPaper::kColumnLength_m)
+     << "  awk -v dt=" << FormatShortest(p.time_step_s)
+     << " -v every=" << FormatShortest(p.dump_interval_s) << " -v w=" << FormatShortest(p.d_mean_m)
+     << " -v width=" << FormatShortest(ColumnPaper::kBoxWidth_m)
+     << " -v h_col=" << FormatShortest(ColumnPaper::kColumnHeight_m)
+     << " -v frame=" << FormatShortest(ColumnPaper::kFrameInterval_s)
+     << " -v frames=13 -v li=" << FormatShortest(ColumnPaper::kColumnLength_m)
      << " -v ranks=\"$NP\" -v wall=\"$wall\" -f column.awk " << log << " column.dump rest.dump\n"
-     << "  printf '  \"time_step_s\": " << Num(p.time_step_s) << ",\\n  \"time_step_choice\": \""
-     << ShellPrintfText(p.time_step_choice) << "\",\\n  \"plan\": '\n"
+     << "  printf '  \"time_step_s\": " << FormatShortest(p.time_step_s)
+     << ",\\n  \"time_step_choice\": \"" << ShellPrintfText(p.time_step_choice)
+     << "\",\\n  \"plan\": '\n"
      << "  cat column.json\n"
      << "  printf '}\\n'\n"
      << "} > summary.json.tmp\n"

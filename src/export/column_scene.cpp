@@ -8,14 +8,13 @@
 #include <random>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/export/column.hpp"
 #include "export/column_deck.hpp"
 
 namespace bouncecal {
 namespace {
-
-std::string Num(double v) { return ShortestNumber(v); }
 
 // Bead diameters: normal within the paper's 4.9-5.9 mm, read as mean +- 2 sigma (95 % of a normal
 // inside the measured range; the paper gives the range only), truncated to the range.
@@ -90,21 +89,22 @@ bool ColumnOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(scale > 0.0 && scale <= 100.0))
-    return fail("column scale = " + Num(scale) + " must be in (0, 100]");
+    return fail("column scale = " + FormatShortest(scale) + " must be in (0, 100]");
   if (particles < 0)
     return fail("column particles = " + std::to_string(particles) + " must be >= 1");
   if (!(restitution == 0.0 || (restitution > 0.0 && restitution < 1.0))) {
-    return fail("column restitution = " + Num(restitution) +
+    return fail("column restitution = " + FormatShortest(restitution) +
                 " must be in (0, 1), or 0 for the fits'");
   }
   if (!(rolling_friction >= 0.0 && rolling_friction <= 1.0)) {
-    return fail("rolling friction = " + Num(rolling_friction) + " must be in [0, 1]");
+    return fail("rolling friction = " + FormatShortest(rolling_friction) + " must be in [0, 1]");
   }
   if (!(dt_e_error > 0.0 && dt_e_error < 0.1)) {
-    return fail("column dt_e_error = " + Num(dt_e_error) + " must be in (0, 0.1)");
+    return fail("column dt_e_error = " + FormatShortest(dt_e_error) + " must be in (0, 0.1)");
   }
   if (!(max_collapse_s > 0.0 && max_collapse_s <= 60.0)) {
-    return fail("column max_collapse_s = " + Num(max_collapse_s) + " must be in (0, 60]");
+    return fail("column max_collapse_s = " + FormatShortest(max_collapse_s) +
+                " must be in (0, 60]");
   }
   if (ranks < 1 || ranks > 4096)
     return fail("ranks = " + std::to_string(ranks) + " must be in [1, 4096]");
@@ -128,16 +128,16 @@ ColumnPlan ColumnGeometry(const ColumnOptions& o, ExportTarget target) {
   p.max_collapse_s = o.max_collapse_s;
   p.q_phi = QPhiFromFrictionAngle(ColumnPaper::kReposeAngle_deg * M_PI / 180.0);
   const double across = ColumnPaper::kColumnLength_m / (kBeadSpan * p.d_max_m);
-  const std::string what =
-      o.particles > 0 ? "--particles " + std::to_string(o.particles) : "--scale " + Num(p.scale);
+  const std::string what = o.particles > 0 ? "--particles " + std::to_string(o.particles)
+                                           : "--scale " + FormatShortest(p.scale);
   if (across < kMinBeadsAcross) {
     throw Error(ErrorCode::kBadParameter,
-                what + ": beads up to " + Num(p.d_max_m * 1e3) + " mm across leave " +
-                    Num(std::floor(across * 10) / 10) +
-                    " of them along the column's 100 mm; at least " + Num(kMinBeadsAcross) +
-                    " must fit (--scale >= " +
-                    Num(kMinBeadsAcross * kBeadSpan * ColumnPaper::kDiameterMax_m /
-                        ColumnPaper::kColumnLength_m) +
+                what + ": beads up to " + FormatShortest(p.d_max_m * 1e3) + " mm across leave " +
+                    FormatShortest(std::floor(across * 10) / 10) +
+                    " of them along the column's 100 mm; at least " +
+                    FormatShortest(kMinBeadsAcross) + " must fit (--scale >= " +
+                    FormatShortest(kMinBeadsAcross * kBeadSpan * ColumnPaper::kDiameterMax_m /
+                                   ColumnPaper::kColumnLength_m) +
                     ", --particles >= " +
                     std::to_string(static_cast<int>(
                         std::ceil(ColumnPaper::kBeads *
@@ -162,9 +162,9 @@ ColumnPlan ColumnGeometry(const ColumnOptions& o, ExportTarget target) {
   if (machine > 0.0 && p.memory_bytes > machine) {
     throw Error(ErrorCode::kBadParameter,
                 what + ": ~" + std::to_string(static_cast<long long>(spheres)) + " spheres need ~" +
-                    Num(std::round(p.memory_bytes / 1e8) / 10) + " GB in " +
+                    FormatShortest(std::round(p.memory_bytes / 1e8) / 10) + " GB in " +
                     ExportTargetName(target) + ", more than this machine's " +
-                    Num(std::round(machine / 1e8) / 10) + " GB; not exported");
+                    FormatShortest(std::round(machine / 1e8) / 10) + " GB; not exported");
   }
   p.poured_beads = static_cast<int>(needed);
   p.pour_bottom_m = p.floor_diameter_m + (0.5 + kPourGap) * p.d_max_m;

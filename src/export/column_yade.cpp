@@ -27,19 +27,22 @@ std::string YadeColumnScript(const ColumnPlan& p, const std::vector<std::string>
      << "settle_steps = int(os.environ.get('BOUNCECAL_SETTLE_STEPS', '" << p.settle_steps << "'))\n"
      << "collapse_steps = int(os.environ.get('BOUNCECAL_COLLAPSE_STEPS', '" << p.collapse_steps
      << "'))\n"
-     << "dt = " << Num(p.time_step_s) << "\n"
-     << "rest_speed = " << Num(p.rest_speed_m_s) << "\n"
-     << "phi = math.atan(" << Num(ColumnPaper::kFriction) << ")\n"
-     << "bead = O.materials.append(FrictMat(young=" << Num(ColumnPaper::kYoungs_pa)
-     << ", poisson=" << Num(p.poisson_ratio)
-     << ", frictionAngle=phi, density=" << Num(ColumnPaper::kDensity_kg_m3) << ", label='bead'))\n"
-     << "floor = O.materials.append(FrictMat(young=" << Num(ColumnPaper::kYoungs_pa)
-     << ", poisson=" << Num(p.poisson_ratio)
-     << ", frictionAngle=phi, density=" << Num(ColumnPaper::kDensity_kg_m3) << ", label='floor'))\n"
-     << "# plastic walls (E = " << Num(p.wall_youngs_pa) << " Pa) stiffened to "
-     << Num(p.yade_wall_youngs_pa) << " Pa: Yade takes R/2 against a wall\n"
-     << "wall = O.materials.append(FrictMat(young=" << Num(p.yade_wall_youngs_pa)
-     << ", poisson=" << Num(p.wall_poisson) << ", frictionAngle=phi, density=1200, label='wall'))\n"
+     << "dt = " << FormatShortest(p.time_step_s) << "\n"
+     << "rest_speed = " << FormatShortest(p.rest_speed_m_s) << "\n"
+     << "phi = math.atan(" << FormatShortest(ColumnPaper::kFriction) << ")\n"
+     << "bead = O.materials.append(FrictMat(young=" << FormatShortest(ColumnPaper::kYoungs_pa)
+     << ", poisson=" << FormatShortest(p.poisson_ratio)
+     << ", frictionAngle=phi, density=" << FormatShortest(ColumnPaper::kDensity_kg_m3)
+     << ", label='bead'))\n"
+     << "floor = O.materials.append(FrictMat(young=" << FormatShortest(ColumnPaper::kYoungs_pa)
+     << ", poisson=" << FormatShortest(p.poisson_ratio)
+     << ", frictionAngle=phi, density=" << FormatShortest(ColumnPaper::kDensity_kg_m3)
+     << ", label='floor'))\n"
+     << "# plastic walls (E = " << FormatShortest(p.wall_youngs_pa) << " Pa) stiffened to "
+     << FormatShortest(p.yade_wall_youngs_pa) << " Pa: Yade takes R/2 against a wall\n"
+     << "wall = O.materials.append(FrictMat(young=" << FormatShortest(p.yade_wall_youngs_pa)
+     << ", poisson=" << FormatShortest(p.wall_poisson)
+     << ", frictionAngle=phi, density=1200, label='wall'))\n"
      << "beads = []\n"
      << "with open('column.data') as f:\n"
      << "    atoms = False\n"
@@ -54,13 +57,14 @@ std::string YadeColumnScript(const ColumnPlan& p, const std::vector<std::string>
      << "                beads.append(O.bodies.append(utils.sphere(c, d / 2, material=bead)))\n"
      << "            else:\n"
      << "                O.bodies.append(utils.sphere(c, d / 2, material=floor, fixed=True))\n"
-     << "for pos, axis, sense in [((0, 0, 0), 0, 1), ((" << Num(ColumnPaper::kBoxLength_m)
-     << ", 0, 0), 0, -1), ((0, 0, 0), 1, 1), ((0, " << Num(ColumnPaper::kBoxWidth_m)
-     << ", 0), 1, -1), ((0, 0, 0), 2, 1)]:\n"
+     << "for pos, axis, sense in [((0, 0, 0), 0, 1), (("
+     << FormatShortest(ColumnPaper::kBoxLength_m) << ", 0, 0), 0, -1), ((0, 0, 0), 1, 1), ((0, "
+     << FormatShortest(ColumnPaper::kBoxWidth_m) << ", 0), 1, -1), ((0, 0, 0), 2, 1)]:\n"
      << "    O.bodies.append(utils.wall(pos, axis=axis, sense=sense, material=wall))\n"
-     << "gate = O.bodies.append(utils.wall((" << Num(ColumnPaper::kColumnLength_m)
+     << "gate = O.bodies.append(utils.wall((" << FormatShortest(ColumnPaper::kColumnLength_m)
      << ", 0, 0), axis=0, sense=-1, material=wall))\n"
-     << "bb, bw = " << Num(p.bead_bead.yade_betan) << ", " << Num(p.bead_wall.yade_betan) << "\n"
+     << "bb, bw = " << FormatShortest(p.bead_bead.yade_betan) << ", "
+     << FormatShortest(p.bead_wall.yade_betan) << "\n"
      << "betan = MatchMaker(matches=((bead, bead, bb), (bead, floor, bw), (bead, wall, bw),\n"
      << "                            (floor, floor, bw), (floor, wall, bw), (wall, wall, bw)))\n"
      << "O.engines = [\n"
@@ -68,7 +72,8 @@ std::string YadeColumnScript(const ColumnPlan& p, const std::vector<std::string>
      << "    InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),\n"
      << "    InteractionLoop([Ig2_Sphere_Sphere_ScGeom(), Ig2_Wall_Sphere_ScGeom()],\n"
      << "                    [Ip2_FrictMat_FrictMat_MindlinPhys(betan=betan, krot="
-     << Num(p.rolling_stiffness_nm_rad) << ", eta=" << Num(p.rolling_friction) << ")],\n"
+     << FormatShortest(p.rolling_stiffness_nm_rad) << ", eta=" << FormatShortest(p.rolling_friction)
+     << ")],\n"
      << "                    [Law2_ScGeom_MindlinPhys_Mindlin(includeMoment=True)]),\n"
      << "    NewtonIntegrator(damping=0, gravity=(0, 0, -9.8)),\n"
      << "]\n"
@@ -83,9 +88,9 @@ std::string YadeColumnScript(const ColumnPlan& p, const std::vector<std::string>
      << "def dump(f, step):\n"
      << "    ids = live()\n"
      << "    f.write('ITEM: TIMESTEP\\n%d\\nITEM: NUMBER OF ATOMS\\n%d\\n' % (step, len(ids)))\n"
-     << "    f.write('ITEM: BOX BOUNDS ff ff ff\\n0 " << Num(ColumnPaper::kBoxLength_m) << "\\n0 "
-     << Num(ColumnPaper::kBoxWidth_m) << "\\n0 " << Num(p.box_top_m)
-     << "\\nITEM: ATOMS id x y z radius\\n')\n"
+     << "    f.write('ITEM: BOX BOUNDS ff ff ff\\n0 " << FormatShortest(ColumnPaper::kBoxLength_m)
+     << "\\n0 " << FormatShortest(ColumnPaper::kBoxWidth_m) << "\\n0 "
+     << FormatShortest(p.box_top_m) << "\\nITEM: ATOMS id x y z radius\\n')\n"
      << "    for i in ids:\n"
      << "        b = O.bodies[i]\n"
      << "        f.write('%d %.9g %.9g %.9g %.9g\\n' % (i + 1, b.state.pos[0], b.state.pos[1], "
@@ -107,16 +112,17 @@ std::string YadeColumnScript(const ColumnPlan& p, const std::vector<std::string>
         "start, "
         "O.numThreads, done, len(O.bodies)))\n"
      << "    return done, at_rest\n\n"
-     << "steps, _ = phase(settle_steps, " << Num(p.settle_min_s) << ", 100, lambda s: None)\n"
+     << "steps, _ = phase(settle_steps, " << FormatShortest(p.settle_min_s)
+     << ", 100, lambda s: None)\n"
      << "print('column: settled after %d steps, top %g m' % (steps, max(O.bodies[i].state.pos[2] + "
         "O.bodies[i].shape.radius for i in beads)))\n"
      << "for i in beads:\n"
-     << "    if O.bodies[i].state.pos[2] > " << Num(h_trim) << ":\n"
+     << "    if O.bodies[i].state.pos[2] > " << FormatShortest(h_trim) << ":\n"
      << "        O.bodies.erase(i)\n"
      << "O.bodies.erase(gate)\n"
      << "ids = live()\n"
-     << "print('column: beads %d floor %d box 0 " << Num(ColumnPaper::kBoxLength_m) << " 0 "
-     << Num(ColumnPaper::kBoxWidth_m) << " 0 " << Num(p.box_top_m)
+     << "print('column: beads %d floor %d box 0 " << FormatShortest(ColumnPaper::kBoxLength_m)
+     << " 0 " << FormatShortest(ColumnPaper::kBoxWidth_m) << " 0 " << FormatShortest(p.box_top_m)
      << "' % (len(ids), sum(1 for b in O.bodies if b is not None and b.material.label == "
         "'floor')))\n"
      << "ip2 = O.engines[2].physDispatcher.functors[0]\n"
@@ -126,7 +132,7 @@ std::string YadeColumnScript(const ColumnPlan& p, const std::vector<std::string>
         "ip2.krot, ip2.eta, O.dt))\n"
      << "out = open('column.dump', 'w')\n"
      << "every = " << p.dump_every << "\n"
-     << "steps, rest = phase(collapse_steps, " << Num(ColumnPaper::kFrameInterval_s)
+     << "steps, rest = phase(collapse_steps, " << FormatShortest(ColumnPaper::kFrameInterval_s)
      << ", every, lambda s: dump(out, s))\n"
      << "out.close()\n"
      << "with open('rest.dump', 'w') as f:\n"

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/export/export.hpp"
 #include "bouncecal/export/mapping.hpp"
 #include "bouncecal/io/param_resolved.hpp"
@@ -52,9 +53,6 @@ void AddVersionNotes(ExportResult* r, ExportTarget target, const std::string& re
 // The column scene (column_export.cpp).
 ExportResult ExportColumn(const std::string& params_path, const std::string& out_dir,
                           const ExportOptions& options);
-
-// Shortest text that reads back to the same double.
-std::string Num(double v);
 // Comment lines with a prefix ("# ").
 std::string CommentBlock(const std::vector<std::string>& lines, const std::string& prefix);
 

@@ -25,8 +25,6 @@ namespace bouncecal {
 
 namespace exporter {
 
-std::string Num(double v) { return ShortestNumber(v); }
-
 PackingScene::PackingScene(double restitution) {
   const double le = std::log(restitution);
   const double zeta = -le / std::sqrt(le * le + M_PI * M_PI);
@@ -46,7 +44,6 @@ std::string CommentBlock(const std::vector<std::string>& lines, const std::strin
 namespace {
 
 using exporter::DeckInput;
-using exporter::Num;
 namespace fs = std::filesystem;
 
 // Trace samples at most every 0.2 ms of simulated time (issue 12).
@@ -209,7 +206,7 @@ RunPlan PlanBounce(const Scene& scene, const ContactLaw& law, int impacts, doubl
 
 std::string LawSummary(const Scene& s) {
   std::string out = s.law.name + ":";
-  for (const auto& [k, v] : s.law.parameters) out += " " + k + " = " + Num(v);
+  for (const auto& [k, v] : s.law.parameters) out += " " + k + " = " + FormatShortest(v);
   return out;
 }
 
@@ -221,7 +218,8 @@ std::string LawMisfitComment(const ExportResult& r) {
   const bool small = std::any_of(r.warnings.begin(), r.warnings.end(),
                                  [](const Warning& w) { return w.code == "law_misfit_small"; });
   return "fit: the law's e(v) differs from a smoother e(v) through the measured bounces by " +
-         Num(r.law_misfit_e) + " rms (tolerance " + Num(r.law_misfit_tolerance_e) + "; " +
+         FormatShortest(r.law_misfit_e) + " rms (tolerance " +
+         FormatShortest(r.law_misfit_tolerance_e) + "; " +
          (small ? "significant but below it: law_misfit_small" : "not significant") +
          "): the simulator reproduces the law, to the mapping error above, not that difference";
 }
@@ -252,20 +250,22 @@ std::vector<std::string> HeaderComments(const DeckInput& in, const ExportResult&
   c.push_back("fitted law  " + in.law_summary);
   c.push_back("native law  " + m.native_law + "  [" + m.kind + "]");
   std::string coeffs = "coefficients";
-  for (const auto& [k, v] : m.coefficients) coeffs += " " + k + " = " + Num(v);
+  for (const auto& [k, v] : m.coefficients) coeffs += " " + k + " = " + FormatShortest(v);
   c.push_back(coeffs);
-  c.push_back("mapping: max |e_native - e_fit| = " + Num(m.max_e_error) +
-              ", max contact-time error " + Num(m.max_contact_time_error) + " (relative), over " +
-              Num(m.speeds_m_s.front()) + " .. " + Num(m.speeds_m_s.back()) + " m/s");
+  c.push_back("mapping: max |e_native - e_fit| = " + FormatShortest(m.max_e_error) +
+              ", max contact-time error " + FormatShortest(m.max_contact_time_error) +
+              " (relative), over " + FormatShortest(m.speeds_m_s.front()) + " .. " +
+              FormatShortest(m.speeds_m_s.back()) + " m/s");
   c.push_back(LawMisfitComment(r));
-  c.push_back("ball: R = " + Num(in.radius_m) + " m, m = " + Num(in.mass_kg) + " kg (density " +
-              Num(in.density_kg_m3) + " kg/m^3), rigid plane z = 0, g = " + Num(in.g_m_s2) +
-              " m/s^2");
-  c.push_back("time step " + Num(ts.dt_s) + " s = shortest contact time " + Num(ts.contact_time_s) +
-              " s / " + Num(ts.steps_per_contact) +
+  c.push_back("ball: R = " + FormatShortest(in.radius_m) + " m, m = " + FormatShortest(in.mass_kg) +
+              " kg (density " + FormatShortest(in.density_kg_m3) +
+              " kg/m^3), rigid plane z = 0, g = " + FormatShortest(in.g_m_s2) + " m/s^2");
+  c.push_back("time step " + FormatShortest(ts.dt_s) + " s = shortest contact time " +
+              FormatShortest(ts.contact_time_s) + " s / " + FormatShortest(ts.steps_per_contact) +
               " (halved from t_c/50 until the e error of the simulators' leapfrog, measured on "
               "16 contact phases at the slowest and fastest speed, is <= " +
-              Num(in.options.time_step_e_error) + "): e error " + Num(ts.e_error) +
+              FormatShortest(in.options.time_step_e_error) + "): e error " +
+              FormatShortest(ts.e_error) +
               (ts.floor ? " (halving stopped: a smaller step no longer reduced it)" : ""));
   for (const std::string& n : m.notes) c.push_back("note: " + n);
   for (const std::string& n : r.notes) {
@@ -366,7 +366,8 @@ std::string RunScript(const DeckInput& in) {
        << "[ -s packing.dump ] || { echo \"run.sh: " << prog
        << " wrote no packing.dump\" >&2; exit 1; }\n"
        << "echo \"density,spheres_in_slab,spheres,wall_time_s,ranks\"\n"
-       << "printf '%s,%s,%s\\n' \"$(awk -v lo=" << Num(kSlabLow_m) << " -v hi=" << Num(kSlabHigh_m)
+       << "printf '%s,%s,%s\\n' \"$(awk -v lo=" << FormatShortest(kSlabLow_m)
+       << " -v hi=" << FormatShortest(kSlabHigh_m)
        << " -v Rc=0.1 -f packing.awk packing.dump)\" \"$(echo \"$end - $start\" | "
           "awk '{printf \"%.2f\", $1 - $3}')\" \"${NP:-1}\"\n";
     return os.str();
@@ -385,7 +386,7 @@ std::string RunScript(const DeckInput& in) {
   os << "  exit 1\n"
      << "fi\n"
      << "[ -s trace.csv ] || { echo \"run.sh: " << prog << " wrote no trace.csv\" >&2; exit 1; }\n"
-     << "awk -F, -v R=" << Num(in.radius_m) << " -v g=" << Num(in.g_m_s2)
+     << "awk -F, -v R=" << FormatShortest(in.radius_m) << " -v g=" << FormatShortest(in.g_m_s2)
      << " -f impacts.awk trace.csv > impacts.csv.tmp\n"
      << "mv impacts.csv.tmp impacts.csv\n"
      << "n=$(($(wc -l < impacts.csv) - 1))\n"
@@ -481,20 +482,21 @@ bool ExportOptions::IsValid(std::string* error) const {
     return fail("impacts = " + std::to_string(impacts) + " must be in [1, 10000]");
   }
   if (!(time_step_e_error > 0.0 && time_step_e_error < 0.1)) {
-    return fail("time_step_e_error = " + Num(time_step_e_error) + " must be in (0, 0.1)");
+    return fail("time_step_e_error = " + FormatShortest(time_step_e_error) +
+                " must be in (0, 0.1)");
   }
   if (!(max_e_error > 0.0 && max_e_error <= 0.01)) {
-    return fail("max_e_error = " + Num(max_e_error) + " must be in (0, 0.01]");
+    return fail("max_e_error = " + FormatShortest(max_e_error) + " must be in (0, 0.01]");
   }
   if (packing_particles < 1 || packing_particles > 1000000) {
     return fail("packing_particles = " + std::to_string(packing_particles) +
                 " must be in [1, 1e6]");
   }
   if (!(packing_time_s > 0.0 && packing_time_s <= 100.0)) {
-    return fail("packing_time_s = " + Num(packing_time_s) + " must be in (0, 100]");
+    return fail("packing_time_s = " + FormatShortest(packing_time_s) + " must be in (0, 100]");
   }
   if (!(packing_restitution == 0.0 || (packing_restitution > 0.0 && packing_restitution < 1.0))) {
-    return fail("packing_restitution = " + Num(packing_restitution) +
+    return fail("packing_restitution = " + FormatShortest(packing_restitution) +
                 " must be in (0, 1), or 0 for the fit's");
   }
   if (scene == ExportScene::kPacking && target == ExportTarget::kYade) {
@@ -582,7 +584,8 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   if (scene.effects.surface_compliance) {
     r.notes.push_back("surface compliance is not exported: the wall is rigid");
   }
-  if (scene.effects.buoyancy) r.notes.push_back("buoyancy: gravity set to g_eff = " + Num(g));
+  if (scene.effects.buoyancy)
+    r.notes.push_back("buoyancy: gravity set to g_eff = " + FormatShortest(g));
 
   // Stage 2: the mapping over the measured speeds; refuse an approximation unless allowed.
   std::vector<double> speeds = MappingSpeeds(replay, *law);
@@ -591,9 +594,10 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
   if (m.max_e_error > options.max_e_error && !options.allow_approximation) {
     throw Error(ErrorCode::kBadParameter,
                 params_path + ": law " + m.law + " cannot be expressed in " + r.target +
-                    " within e error " + Num(options.max_e_error) + ": the closest native law (" +
-                    m.native_law + ") is off by " + Num(m.max_e_error) + " over " +
-                    Num(speeds.front()) + " .. " + Num(speeds.back()) +
+                    " within e error " + FormatShortest(options.max_e_error) +
+                    ": the closest native law (" + m.native_law + ") is off by " +
+                    FormatShortest(m.max_e_error) + " over " + FormatShortest(speeds.front()) +
+                    " .. " + FormatShortest(speeds.back()) +
                     " m/s; not exported (ExportOptions::allow_approximation accepts it)");
   }
   r.native_law = m.native_law;
@@ -643,10 +647,10 @@ ExportResult ExportDeck(const std::string& params_path, const std::string& out_d
     r.run_time_s = options.packing_time_s;
     r.packing_restitution = in.packing_restitution;
     r.notes.push_back("packing: linear springs k_n = k_s = 1e7 N/m, mu = 0.3, pairwise e = " +
-                      Num(in.packing_restitution) +
+                      FormatShortest(in.packing_restitution) +
                       (options.packing_restitution > 0.0
                            ? std::string(" (given, not the fit's)")
-                           : " (the fit's e at " + Num(speeds[mid]) + " m/s)"));
+                           : " (the fit's e at " + FormatShortest(speeds[mid]) + " m/s)"));
   }
   r.time_step_s = ts.dt_s;
   r.time_step_e_error = ts.e_error;

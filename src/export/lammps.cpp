@@ -12,6 +12,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "bouncecal/core/format.hpp"
 #include "export/deck.hpp"
 
 namespace bouncecal::exporter {
@@ -23,13 +24,14 @@ std::string WallLine(const DeckInput& in) {
   std::ostringstream os;
   os << "fix wall all wall/gran granular ";
   if (m.form == NativeForm::kLinear) {
-    os << "hooke " << Num(c.at("kn_n_m")) << " " << Num(c.at("damping_n_s_m"))
+    os << "hooke " << FormatShortest(c.at("kn_n_m")) << " " << FormatShortest(c.at("damping_n_s_m"))
        << " damping velocity";
   } else if (m.form == NativeForm::kHertzViscoelastic) {
-    os << "hertz " << Num(c.at("kn_pa")) << " " << Num(c.at("eta_n0_1_m_s"))
+    os << "hertz " << FormatShortest(c.at("kn_pa")) << " " << FormatShortest(c.at("eta_n0_1_m_s"))
        << " damping viscoelastic";
   } else {
-    os << "hertz " << Num(c.at("kn_pa")) << " " << Num(c.at("e_input")) << " damping tsuji";
+    os << "hertz " << FormatShortest(c.at("kn_pa")) << " " << FormatShortest(c.at("e_input"))
+       << " damping tsuji";
   }
   os << " tangential linear_nohistory 0 0 zplane 0.0 NULL\n";
   return os.str();
@@ -48,16 +50,18 @@ std::string LammpsBounceDeck(const DeckInput& in) {
      << "atom_modify map array\n"
      << "boundary f f f\n"
      << "comm_modify vel yes\n"
-     << "region box block " << Num(-4 * r) << " " << Num(4 * r) << " " << Num(-4 * r) << " "
-     << Num(4 * r) << " " << Num(-r) << " " << Num(z0 + 4 * r) << " units box\n"
+     << "region box block " << FormatShortest(-4 * r) << " " << FormatShortest(4 * r) << " "
+     << FormatShortest(-4 * r) << " " << FormatShortest(4 * r) << " " << FormatShortest(-r) << " "
+     << FormatShortest(z0 + 4 * r) << " units box\n"
      << "create_box 1 box\n"
-     << "create_atoms 1 single 0 0 " << Num(z0) << " units box\n"
-     << "set atom 1 diameter " << Num(2 * r) << " density " << Num(in.density_kg_m3) << "\n"
+     << "create_atoms 1 single 0 0 " << FormatShortest(z0) << " units box\n"
+     << "set atom 1 diameter " << FormatShortest(2 * r) << " density "
+     << FormatShortest(in.density_kg_m3) << "\n"
      << "velocity all set 0 0 0\n"
      << "pair_style none\n"
      << "fix integrate all nve/sphere\n"
-     << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0 0 -1\n"
-     << WallLine(in) << "timestep " << Num(in.time_step_s) << "\n"
+     << "fix gravity all gravity " << FormatShortest(in.g_m_s2) << " vector 0 0 -1\n"
+     << WallLine(in) << "timestep " << FormatShortest(in.time_step_s) << "\n"
      << "variable steps index " << in.steps << "\n"
      << "variable t equal time\n"
      << "variable z equal z[1]\n"
@@ -89,28 +93,32 @@ std::string LammpsPackingDeck(const DeckInput& in) {
      << "create_box 1 box\n"
      << "neighbor 0.002 bin\n"
      << "neigh_modify delay 0\n"
-     << "# gamma_n (1/s): " << Num(gn_pp) << " between spheres, " << Num(gn_pw)
-     << " against walls, both giving e = " << Num(in.packing_restitution) << "\n"
-     << "pair_style gran/hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pp) << " "
-     << Num(0.5 * gn_pp) << " " << Num(mu) << " 1\n"
+     << "# gamma_n (1/s): " << FormatShortest(gn_pp) << " between spheres, "
+     << FormatShortest(gn_pw)
+     << " against walls, both giving e = " << FormatShortest(in.packing_restitution) << "\n"
+     << "pair_style gran/hooke/history " << FormatShortest(kn) << " " << FormatShortest(kn) << " "
+     << FormatShortest(gn_pp) << " " << FormatShortest(0.5 * gn_pp) << " " << FormatShortest(mu)
+     << " 1\n"
      << "pair_coeff * *\n"
-     << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0 0 -1\n"
+     << "fix gravity all gravity " << FormatShortest(in.g_m_s2) << " vector 0 0 -1\n"
      << "fix integrate all nve/sphere\n"
-     << "fix floor all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pw)
-     << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zplane 0.0 NULL\n"
-     << "fix side all wall/gran hooke/history " << Num(kn) << " " << Num(kn) << " " << Num(gn_pw)
-     << " " << Num(0.5 * gn_pw) << " " << Num(mu) << " 1 zcylinder 0.1\n"
+     << "fix floor all wall/gran hooke/history " << FormatShortest(kn) << " " << FormatShortest(kn)
+     << " " << FormatShortest(gn_pw) << " " << FormatShortest(0.5 * gn_pw) << " "
+     << FormatShortest(mu) << " 1 zplane 0.0 NULL\n"
+     << "fix side all wall/gran hooke/history " << FormatShortest(kn) << " " << FormatShortest(kn)
+     << " " << FormatShortest(gn_pw) << " " << FormatShortest(0.5 * gn_pw) << " "
+     << FormatShortest(mu) << " 1 zcylinder 0.1\n"
      << "# The hopper: the spheres start at rest on a jittered lattice (spacing 1.25 d) between\n"
      << "# 5 and 20 cm and fall together (fix pour of this version inserts one batch only).\n"
      << "region hopper cylinder z 0 0 0.094 0.05 0.2 units box\n"
-     << "lattice sc " << Num(1.25 * d) << " origin 0.5 0.5 0.5\n"
+     << "lattice sc " << FormatShortest(1.25 * d) << " origin 0.5 0.5 0.5\n"
      << "variable seed index 4767\n"
      << "create_atoms 1 region hopper subset " << in.options.packing_particles << " ${seed}\n"
-     << "displace_atoms all random " << Num(0.07 * d) << " " << Num(0.07 * d) << " "
-     << Num(0.07 * d) << " ${seed} units box\n"
-     << "set group all diameter " << Num(d) << " density " << Num(rho) << "\n"
+     << "displace_atoms all random " << FormatShortest(0.07 * d) << " " << FormatShortest(0.07 * d)
+     << " " << FormatShortest(0.07 * d) << " ${seed} units box\n"
+     << "set group all diameter " << FormatShortest(d) << " density " << FormatShortest(rho) << "\n"
      << "velocity all set 0 0 0\n"
-     << "timestep " << Num(in.time_step_s) << "\n"
+     << "timestep " << FormatShortest(in.time_step_s) << "\n"
      << "variable steps index " << in.steps << "\n"
      << "compute rke all erotate/sphere\n"
      << "thermo_style custom step atoms ke c_rke\n"

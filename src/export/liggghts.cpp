@@ -17,13 +17,14 @@
 #include <cmath>
 #include <sstream>
 
+#include "bouncecal/core/format.hpp"
 #include "export/deck.hpp"
 
 namespace bouncecal::exporter {
 namespace {
 
 std::string Pair4(double v) {
-  const std::string s = Num(v);
+  const std::string s = FormatShortest(v);
   return s + " " + s + " " + s + " " + s;
 }
 
@@ -57,10 +58,10 @@ LiggghtsModel ModelOf(const DeckInput& in) {
     // Both types carry the same Y and nu: Y* = Y / (2 (1 - nu^2)) gives the fitted k.
     const double nu = in.poisson_ratio;
     const double y = 2.0 * (1.0 - nu * nu) * c.at("Yeff_pa");
-    p << "fix m_youngs all property/global youngsModulus peratomtype " << Num(y) << " " << Num(y)
-      << "\n"
-      << "fix m_poisson all property/global poissonsRatio peratomtype " << Num(nu) << " " << Num(nu)
-      << "\n"
+    p << "fix m_youngs all property/global youngsModulus peratomtype " << FormatShortest(y) << " "
+      << FormatShortest(y) << "\n"
+      << "fix m_poisson all property/global poissonsRatio peratomtype " << FormatShortest(nu) << " "
+      << FormatShortest(nu) << "\n"
       << "fix m_restitution all property/global coefficientRestitution peratomtypepair 2 "
       << Pair4(c.at("coefficientRestitution")) << "\n";
     out.model = "model hertz tangential no_history";
@@ -87,18 +88,20 @@ std::string LiggghtsBounceDeck(const DeckInput& in) {
      << "communicate single vel yes\n"
      << "units si\n"
      << "hard_particles yes\n"
-     << "region box block " << Num(-4 * r) << " " << Num(4 * r) << " " << Num(-4 * r) << " "
-     << Num(4 * r) << " " << Num(-r) << " " << Num(z0 + 4 * r) << " units box\n"
+     << "region box block " << FormatShortest(-4 * r) << " " << FormatShortest(4 * r) << " "
+     << FormatShortest(-4 * r) << " " << FormatShortest(4 * r) << " " << FormatShortest(-r) << " "
+     << FormatShortest(z0 + 4 * r) << " units box\n"
      << "create_box 2 box\n"
-     << "neighbor " << Num(0.1 * r) << " bin\n"
+     << "neighbor " << FormatShortest(0.1 * r) << " bin\n"
      << "neigh_modify delay 0\n"
      << model.properties << "pair_style gran " << model.model << "\n"
      << "pair_coeff * *\n"
-     << "timestep " << Num(in.time_step_s) << "\n"
-     << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0.0 0.0 -1.0\n"
+     << "timestep " << FormatShortest(in.time_step_s) << "\n"
+     << "fix gravity all gravity " << FormatShortest(in.g_m_s2) << " vector 0.0 0.0 -1.0\n"
      << "fix wall all wall/gran " << model.model << " primitive type 2 zplane 0.0\n"
-     << "create_atoms 1 single 0 0 " << Num(z0) << " units box\n"
-     << "set atom 1 diameter " << Num(2 * r) << " density " << Num(in.density_kg_m3) << "\n"
+     << "create_atoms 1 single 0 0 " << FormatShortest(z0) << " units box\n"
+     << "set atom 1 diameter " << FormatShortest(2 * r) << " density "
+     << FormatShortest(in.density_kg_m3) << "\n"
      << "fix integrate all nve/sphere\n"
      << "variable steps index " << in.steps << "\n"
      << "variable t equal time\n"
@@ -118,7 +121,8 @@ std::string LiggghtsPackingDeck(const DeckInput& in) {
   const PackingScene ps(in.packing_restitution);
   const double kn = ps.kn, mu = ps.mu, d = ps.d, rho = ps.rho, gn_pp = ps.gn_pp, gn_pw = ps.gn_pw;
   auto pair = [](double pp, double pw) {
-    return Num(pp) + " " + Num(pw) + " " + Num(pw) + " " + Num(pw);
+    return FormatShortest(pp) + " " + FormatShortest(pw) + " " + FormatShortest(pw) + " " +
+           FormatShortest(pw);
   };
   std::ostringstream os;
   os << CommentBlock(in.comments, "# ");
@@ -144,15 +148,15 @@ std::string LiggghtsPackingDeck(const DeckInput& in) {
      << "\n"
      << "pair_style gran model hooke/stiffness tangential history\n"
      << "pair_coeff * *\n"
-     << "timestep " << Num(in.time_step_s) << "\n"
-     << "fix gravity all gravity " << Num(in.g_m_s2) << " vector 0.0 0.0 -1.0\n"
+     << "timestep " << FormatShortest(in.time_step_s) << "\n"
+     << "fix gravity all gravity " << FormatShortest(in.g_m_s2) << " vector 0.0 0.0 -1.0\n"
      << "fix floor all wall/gran model hooke/stiffness tangential history primitive type 2 "
         "zplane 0.0\n"
      << "fix side all wall/gran model hooke/stiffness tangential history primitive type 2 "
         "zcylinder 0.1 0.0 0.0\n"
      << "variable seed index 86028121\n"  // LIGGGHTS seeds must be primes > 10000
-     << "fix pts all particletemplate/sphere 15485863 atom_type 1 density constant " << Num(rho)
-     << " radius constant " << Num(0.5 * d) << "\n"
+     << "fix pts all particletemplate/sphere 15485863 atom_type 1 density constant "
+     << FormatShortest(rho) << " radius constant " << FormatShortest(0.5 * d) << "\n"
      << "fix pdd all particledistribution/discrete 32452843 1 pts 1.0\n"
      << "# The hopper: spheres placed at random (no overlap) between 5 and 20 cm, at rest.\n"
      << "region hopper cylinder z 0 0 0.094 0.05 0.2 units box\n"

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
 
@@ -14,13 +15,6 @@ namespace bouncecal {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-std::string Num(double v) {
-  std::ostringstream os;
-  os.precision(10);
-  os << v;
-  return os.str();
-}
 
 // Bisection for a decreasing function f on [lo, hi]: f(x) = target.
 template <typename F>
@@ -114,7 +108,7 @@ void DescribeNative(const Fit& fit, Mapping* m) {
         const double a = m->damping;
         if (!(a <= LammpsTsujiPolynomial(0.0) && a >= 0.0)) {
           throw Error(ErrorCode::kBadParameter,
-                      "lammps: Tsuji alpha = " + Num(a) +
+                      "lammps: Tsuji alpha = " + FormatGeneral(a, 10) +
                           " is outside LAMMPS' alpha(e) polynomial range [0, 1.2728]");
         }
         co["e_input"] = SolveDecreasing(LammpsTsujiPolynomial, a, 0.0, 1.0);
@@ -125,8 +119,9 @@ void DescribeNative(const Fit& fit, Mapping* m) {
         m->notes.push_back(
             "LAMMPS' damping tsuji turns e into alpha with a polynomial that is not "
             "Tsuji's alpha(e): e = " +
-            Num(co["e_input"]) + " is written so that alpha = " + Num(a) + " (e = " + Num(e_fit) +
-            " written as it is would bounce at " + Num(e_naive) + ")");
+            FormatGeneral(co["e_input"], 10) + " is written so that alpha = " +
+            FormatGeneral(a, 10) + " (e = " + FormatGeneral(e_fit, 10) +
+            " written as it is would bounce at " + FormatGeneral(e_naive, 10) + ")");
         m->native_law = "fix wall/gran granular hertz kn e damping tsuji";
       }
       break;
@@ -142,7 +137,7 @@ void DescribeNative(const Fit& fit, Mapping* m) {
       } else {
         const double a = m->damping;
         if (!(a < std::sqrt(5.0))) {
-          throw Error(ErrorCode::kBadParameter, "liggghts: Tsuji alpha = " + Num(a) +
+          throw Error(ErrorCode::kBadParameter, "liggghts: Tsuji alpha = " + FormatGeneral(a, 10) +
                                                     " needs alpha < sqrt(5) for model hertz");
         }
         co["coefficientRestitution"] = LiggghtsHertzRestitution(a);
@@ -202,8 +197,8 @@ void MapLinearDashpot(const Fit& fit, bool force_zero, Mapping* m) {
   m->notes.push_back(std::string(ExportTargetName(m->target)) + " ends a linear contact at " +
                      (native_clip ? "F = 0 (attractive force clipped)" : "overlap 0") +
                      ", the fit at " + (force_zero ? "F = 0" : "overlap 0") +
-                     ": k and c re-solved for the same e = " + Num(fit.e[0]) +
-                     " and contact time " + Num(fit.tc[0]) + " s");
+                     ": k and c re-solved for the same e = " + FormatGeneral(fit.e[0], 10) +
+                     " and contact time " + FormatGeneral(fit.tc[0], 10) + " s");
 }
 
 void MapConstantLinear(const Fit& fit, const std::string& why, Mapping* m) {
@@ -212,8 +207,9 @@ void MapConstantLinear(const Fit& fit, const std::string& why, Mapping* m) {
   LinearForRestitutionAndTime(fit.e[0], fit.tc[0], fit.body.mass_kg, m->clip, &m->stiffness,
                               &m->damping);
   m->kind = "matched";
-  m->notes.push_back(why + ": a linear spring-dashpot with the same e = " + Num(fit.e[0]) +
-                     " and contact time " + Num(fit.tc[0]) +
+  m->notes.push_back(why +
+                     ": a linear spring-dashpot with the same e = " + FormatGeneral(fit.e[0], 10) +
+                     " and contact time " + FormatGeneral(fit.tc[0], 10) +
                      " s replaces it (e and t_c are speed-independent in both; peak overlap and "
                      "force history differ)");
 }
@@ -228,7 +224,7 @@ void MapHertzTsuji(const Fit& fit, Mapping* m) {
     m->notes.push_back(
         "Yade clips the attractive end of the contact force: alpha re-solved "
         "under the F = 0 end for the same e = " +
-        Num(fit.Param("e")));
+        FormatGeneral(fit.Param("e"), 10));
   }
 }
 
@@ -251,8 +247,15 @@ void MapHertzViscoelastic(const Fit& fit, Mapping* m) {
   m->notes.push_back(
       "yade has no viscoelastic Hertz damping (d^1/2 d'): Hertz-Mindlin with the "
       "constant e = " +
-      Num(e_mid) + " closest to the fitted e(v) = " + Num(fit.EMin()) + " .. " + Num(fit.EMax()) +
-      " over the measured speeds");
+      FormatGeneral(e_mid, 10) + " closest to the fitted e(v) = " + FormatGeneral(fit.EMin(), 10) +
+      " .. " + FormatGeneral(fit.EMax(), 10) + " over the measured speeds");
+}
+
+// A registry row's export note with "{target}" replaced by the simulator's name.
+std::string WithTarget(std::string note, ExportTarget target) {
+  const std::size_t at = note.find("{target}");
+  if (at != std::string::npos) note.replace(at, 8, ExportTargetName(target));
+  return note;
 }
 
 // Any other law: a constant-e Hertz law (the target's Tsuji form) with the middle e of the
@@ -269,10 +272,11 @@ void MapClosestHertz(const Fit& fit, Mapping* m) {
   const double tc_unit = unit.ContactTimeAt(fit.body, v);
   m->stiffness = std::pow(tc_unit / fit.tc[mid], 2.5);
   m->kind = "approximated";
-  m->notes.push_back(std::string(ExportTargetName(m->target)) + " has no native " +
-                     fit.law->Name() + ": a Hertz law with the constant e = " + Num(e_mid) +
-                     " (fitted e(v) " + Num(fit.EMin()) + " .. " + Num(fit.EMax()) +
-                     ") and the fit's contact time at " + Num(v) + " m/s");
+  m->notes.push_back(
+      std::string(ExportTargetName(m->target)) + " has no native " + fit.law->Name() +
+      ": a Hertz law with the constant e = " + FormatGeneral(e_mid, 10) + " (fitted e(v) " +
+      FormatGeneral(fit.EMin(), 10) + " .. " + FormatGeneral(fit.EMax(), 10) +
+      ") and the fit's contact time at " + FormatGeneral(v, 10) + " m/s");
 }
 
 }  // namespace
@@ -350,26 +354,23 @@ Mapping MapLaw(const Scene& scene, const std::vector<double>& speeds_m_s, Export
   m.target = target;
   m.law = scene.law.name;
   m.speeds_m_s = speeds_m_s;
-  const std::string& name = scene.law.name;
-  if (name == "linear-dashpot" || name == "linear-dashpot-force-zero") {
-    MapLinearDashpot(fit, name == "linear-dashpot-force-zero", &m);
-  } else if (name == "walton-braun") {
-    MapConstantLinear(fit,
-                      "the seed law's (1 +- gamma) k branches are not native in " +
-                          std::string(ExportTargetName(target)),
-                      &m);
-  } else if (name == "walton-braun-hysteretic") {
-    MapConstantLinear(fit,
-                      "Walton-Braun hysteresis with constant k2 is not native in " +
-                          std::string(ExportTargetName(target)) +
-                          " (LIGGGHTS hooke/hysteresis lets k2 grow with the overlap)",
-                      &m);
-  } else if (name == "hertz-tsuji") {
-    MapHertzTsuji(fit, &m);
-  } else if (name == "hertz-viscoelastic") {
-    MapHertzViscoelastic(fit, &m);
-  } else {
-    MapClosestHertz(fit, &m);
+  const LawInfo* row = FindLaw(scene.law.name);
+  switch (row != nullptr ? row->export_mapping : ExportMapping::kClosestHertz) {
+    case ExportMapping::kLinearDashpot:
+      MapLinearDashpot(fit, row->end_rule == ContactEnd::kForceZero, &m);
+      break;
+    case ExportMapping::kConstantLinear:
+      MapConstantLinear(fit, WithTarget(row->export_note, target), &m);
+      break;
+    case ExportMapping::kHertzTsuji:
+      MapHertzTsuji(fit, &m);
+      break;
+    case ExportMapping::kHertzViscoelastic:
+      MapHertzViscoelastic(fit, &m);
+      break;
+    case ExportMapping::kClosestHertz:
+      MapClosestHertz(fit, &m);
+      break;
   }
   m.exact = m.kind == "exact";
   DescribeNative(fit, &m);

@@ -13,6 +13,7 @@
 // NewtonIntegrator(damping=0): Yade's default numerical damping (0.2) would dissipate energy.
 #include <sstream>
 
+#include "bouncecal/core/format.hpp"
 #include "export/deck.hpp"
 
 namespace bouncecal::exporter {
@@ -28,19 +29,20 @@ std::string YadeBounceScript(const DeckInput& in) {
      << "import os\n\n"
      << "steps = int(os.environ.get('BOUNCECAL_STEPS', '" << in.steps << "'))\n";
   if (m.form == NativeForm::kLinear) {
-    os << "mat = O.materials.append(ViscElMat(kn=" << Num(c.at("kn_n_m"))
-       << ", cn=" << Num(c.at("cn_n_s_m"))
-       << ", ks=0, cs=0, frictionAngle=0, density=" << Num(in.density_kg_m3) << "))\n";
+    os << "mat = O.materials.append(ViscElMat(kn=" << FormatShortest(c.at("kn_n_m"))
+       << ", cn=" << FormatShortest(c.at("cn_n_s_m"))
+       << ", ks=0, cs=0, frictionAngle=0, density=" << FormatShortest(in.density_kg_m3) << "))\n";
   } else {
     // Same material on both sides: E* = E / (2 (1 - nu^2)).
     const double nu = in.poisson_ratio;
     os << "mat = O.materials.append(FrictMat(young="
-       << Num(2.0 * (1.0 - nu * nu) * c.at("young_eff_pa")) << ", poisson=" << Num(nu)
-       << ", frictionAngle=0, density=" << Num(in.density_kg_m3) << "))\n";
+       << FormatShortest(2.0 * (1.0 - nu * nu) * c.at("young_eff_pa"))
+       << ", poisson=" << FormatShortest(nu)
+       << ", frictionAngle=0, density=" << FormatShortest(in.density_kg_m3) << "))\n";
   }
   os << "wall = O.bodies.append(utils.wall(0, axis=2, sense=1, material=mat))\n"
-     << "ball = O.bodies.append(utils.sphere((0, 0, " << Num(z0) << "), " << Num(r)
-     << ", material=mat))\n"
+     << "ball = O.bodies.append(utils.sphere((0, 0, " << FormatShortest(z0) << "), "
+     << FormatShortest(r) << ", material=mat))\n"
      << "trace = open('trace.csv', 'w')\n"
      << "trace.write('t_s,z_m,vz_m_s\\n')\n\n"
      << "def sample():\n"
@@ -49,17 +51,17 @@ std::string YadeBounceScript(const DeckInput& in) {
   const std::string ip2 =
       m.form == NativeForm::kLinear
           ? "Ip2_ViscElMat_ViscElMat_ViscElPhys()"
-          : "Ip2_FrictMat_FrictMat_MindlinPhys(betan=" + Num(c.at("betan")) + ")";
+          : "Ip2_FrictMat_FrictMat_MindlinPhys(betan=" + FormatShortest(c.at("betan")) + ")";
   const std::string law2 = m.form == NativeForm::kLinear ? "Law2_ScGeom_ViscElPhys_Basic()"
                                                          : "Law2_ScGeom_MindlinPhys_Mindlin()";
   os << "O.engines = [\n"
      << "    ForceResetter(),\n"
      << "    InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()]),\n"
      << "    InteractionLoop([Ig2_Wall_Sphere_ScGeom()], [" << ip2 << "], [" << law2 << "]),\n"
-     << "    NewtonIntegrator(damping=0, gravity=(0, 0, " << Num(-in.g_m_s2) << ")),\n"
+     << "    NewtonIntegrator(damping=0, gravity=(0, 0, " << FormatShortest(-in.g_m_s2) << ")),\n"
      << "    PyRunner(iterPeriod=" << in.trace_every << ", command='sample()', initRun=True),\n"
      << "]\n"
-     << "O.dt = " << Num(in.time_step_s) << "\n"
+     << "O.dt = " << FormatShortest(in.time_step_s) << "\n"
      << "O.run(steps, True)\n"
      << "trace.close()\n"
      << "print('bounce.py: %d steps, t = %g s' % (O.iter, O.time))\n";

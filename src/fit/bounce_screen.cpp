@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <string>
 
+#include "bouncecal/core/format.hpp"
+#include "bouncecal/core/stats.hpp"
 #include "bouncecal/fit/scatter_model.hpp"
 #include "bouncecal/physics/flight.hpp"
 #include "fit/text.hpp"
@@ -15,8 +17,6 @@ namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-using fit_text::Printf;
 
 // A smooth e(u) = sum_j beta_j f_j(u) over a choice of the terms {1, x, u/u_ref, x^2},
 // x = ln(u/u_ref): ln u carries the viscoelastic e ~ 1 - c u^(1/5) family, u the

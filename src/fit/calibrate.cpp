@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/parallel.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "fit/calibrate_stages.hpp"
@@ -21,7 +22,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-using fit_text::Fmt;
 using fit_text::Join;
 
 // The result skeleton: law identity, every parameter at the given values, no sigmas.
@@ -189,7 +189,7 @@ Calibration Calibrate(const std::vector<CalibrationInput>& recordings, const Sce
   }
   if (fp.e_median >= 1.0) {
     return Unfitted(fp, FitOutcome::kFailed,
-                    "the measured median restitution " + Fmt(fp.e_median, 4) +
+                    "the measured median restitution " + FormatGeneral(fp.e_median, 4) +
                         " is >= 1: these impacts do not form a damped bounce sequence",
                     "listen to the impacts used (detect --click-track FILE.wav) and check the "
                     "scene (--drag, --contact-duration)");
@@ -396,10 +396,10 @@ bool CalibrationOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(rel_tolerance >= 1e-14 && rel_tolerance <= 1e-2)) {
-    return fail("rel_tolerance = " + Fmt(rel_tolerance) + " must be in [1e-14, 1e-2]");
+    return fail("rel_tolerance = " + FormatGeneral(rel_tolerance) + " must be in [1e-14, 1e-2]");
   }
   if (!(loss_scale_sigma > 0.0) || !std::isfinite(loss_scale_sigma)) {
-    return fail("loss_scale_sigma = " + Fmt(loss_scale_sigma) + " must be positive");
+    return fail("loss_scale_sigma = " + FormatGeneral(loss_scale_sigma) + " must be positive");
   }
   if (max_iterations < 1 || max_iterations > 10000) {
     return fail("max_iterations = " + std::to_string(max_iterations) + " must be in [1, 10000]");
@@ -414,17 +414,18 @@ bool CalibrationOptions::IsValid(std::string* error) const {
     return fail("e_of_v_points = " + std::to_string(e_of_v_points) + " must be in [2, 1000]");
   }
   if (!(undetermined_relative_sigma > 0.0)) {
-    return fail("undetermined_relative_sigma = " + Fmt(undetermined_relative_sigma) +
+    return fail("undetermined_relative_sigma = " + FormatGeneral(undetermined_relative_sigma) +
                 " must be positive");
   }
   if (!(poor_fit_p_value > 0.0 && poor_fit_p_value < 1.0)) {
-    return fail("poor_fit_p_value = " + Fmt(poor_fit_p_value) + " must be in (0, 1)");
+    return fail("poor_fit_p_value = " + FormatGeneral(poor_fit_p_value) + " must be in (0, 1)");
   }
   if (!(misfit_tolerance_e >= 0.0) || !std::isfinite(misfit_tolerance_e)) {
-    return fail("misfit_tolerance_e = " + Fmt(misfit_tolerance_e) + " must be >= 0");
+    return fail("misfit_tolerance_e = " + FormatGeneral(misfit_tolerance_e) + " must be >= 0");
   }
   if (!(plausible_scatter_e > 0.0) || !std::isfinite(plausible_scatter_e)) {
-    return fail("plausible_scatter_e = " + Fmt(plausible_scatter_e) + " must be positive");
+    return fail("plausible_scatter_e = " + FormatGeneral(plausible_scatter_e) +
+                " must be positive");
   }
   std::string why;
   if (!analysis.IsValid(&why)) return fail("analysis." + why);

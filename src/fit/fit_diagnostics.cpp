@@ -20,11 +20,7 @@
 #include "fit/text.hpp"
 
 namespace bouncecal::calib {
-namespace {
-
-using fit_text::Fmt;
-
-}  // namespace
+namespace {}  // namespace
 
 namespace {
 
@@ -60,10 +56,10 @@ void JudgeGoodness(
       const double pv = 0.5 * std::erfc(z / std::sqrt(2.0));
       if (pv < o.poor_fit_p_value) {
         set(FitOutcome::kPoorFit,
-            "chi2/dof = " + Fmt(s.scatter.chi2 / dof, 3) +
-                " of the impact times with the scatter sigma_s = " + Fmt(s.scatter.sigma, 2) +
-                " of the restitution fit (p = " + Fmt(pv, 2) +
-                "): the simulated trajectory does not follow the recording",
+            "chi2/dof = " + FormatGeneral(s.scatter.chi2 / dof, 3) +
+                " of the impact times with the scatter sigma_s = " +
+                FormatGeneral(s.scatter.sigma, 2) + " of the restitution fit (p = " +
+                FormatGeneral(pv, 2) + "): the simulated trajectory does not follow the recording",
             "fit each bounce's e with its scatter instead (--strategy restitution); or fit every "
             "law and rank them (--law all)");
       }
@@ -72,9 +68,9 @@ void JudgeGoodness(
   const double ss = s.scatter.sigma, ss_sigma = s.scatter.sigma_sigma;
   if (ss - 2.0 * (std::isfinite(ss_sigma) ? ss_sigma : 0.0) > o.plausible_scatter_e) {
     set(FitOutcome::kPoorFit,
-        "the scatter of e about the law, " + Fmt(ss, 2) + " +- " + Fmt(ss_sigma, 2) +
-            ", exceeds what real balls show (" + Fmt(o.plausible_scatter_e, 2) +
-            "): the law does not describe these bounces",
+        "the scatter of e about the law, " + FormatGeneral(ss, 2) + " +- " +
+            FormatGeneral(ss_sigma, 2) + ", exceeds what real balls show (" +
+            FormatGeneral(o.plausible_scatter_e, 2) + "): the law does not describe these bounces",
         "listen to the impacts used (detect --click-track FILE.wav): they may not all be this "
         "ball's bounces; then fit every law and rank them (--law all)");
   }
@@ -139,9 +135,9 @@ Diagnosis Diagnose(const FitProblem& fp, const Solution& s, const Uncertainty& u
     const double tol = 1e-8 * std::max(std::abs(s.p[i]), su.typical[i]);
     if (s.p[i] <= sp.lower + tol || s.p[i] >= sp.upper - tol) {
       d.warnings.push_back({"fit_at_bound",
-                            sp.name + " = " + Fmt(s.p[i], 4) + " " + sp.unit +
-                                " stopped at its bound [" + Fmt(sp.lower, 3) + ", " +
-                                Fmt(sp.upper, 3) +
+                            sp.name + " = " + FormatGeneral(s.p[i], 4) + " " + sp.unit +
+                                " stopped at its bound [" + FormatGeneral(sp.lower, 3) + ", " +
+                                FormatGeneral(sp.upper, 3) +
                                 "]: the data push it outside the law's physical "
                                 "range; its sigma is one-sided at best",
                             -1,

@@ -4,28 +4,29 @@
 #include <iomanip>
 #include <sstream>
 
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/fit/calibrate.hpp"
 #include "fit/text.hpp"
 
 namespace bouncecal {
 namespace {
 
-using fit_text::Fmt;
 using fit_text::Join;
 
 std::string FormatResidual(double v, const std::string& unit) {
   if (!std::isfinite(v)) return "-";
-  if (unit == "s") return Fmt(v * 1e6, 4) + " us";
-  return Fmt(v, 4);
+  if (unit == "s") return FormatGeneral(v * 1e6, 4) + " us";
+  return FormatGeneral(v, 4);
 }
 
 std::string ScatterText(const Calibration& c) {
   if (!std::isfinite(c.scatter_e)) return "-";
   if (c.scatter_at_zero) {
-    return "0 (< " + (std::isfinite(c.scatter_e_sigma) ? Fmt(c.scatter_e_sigma, 2) : "?") +
+    return "0 (< " +
+           (std::isfinite(c.scatter_e_sigma) ? FormatGeneral(c.scatter_e_sigma, 2) : "?") +
            ", 68 % upper limit)";
   }
-  return Fmt(c.scatter_e, 3) + " ± " + Fmt(c.scatter_e_sigma, 2);
+  return FormatGeneral(c.scatter_e, 3) + " ± " + FormatGeneral(c.scatter_e_sigma, 2);
 }
 
 }  // namespace
@@ -36,14 +37,14 @@ std::string Calibration::BriefReport() const {
   bool first = true;
   for (const auto& p : parameters) {
     if (p.fixed) continue;
-    os << (first ? " " : ", ") << p.name << " = " << Fmt(p.value, 6);
-    if (std::isfinite(p.sigma)) os << " ± " << Fmt(p.sigma, 2);
+    os << (first ? " " : ", ") << p.name << " = " << FormatGeneral(p.value);
+    if (std::isfinite(p.sigma)) os << " ± " << FormatGeneral(p.sigma, 2);
     if (!p.determined) os << " (undetermined)";
     first = false;
   }
-  os << ", scatter " << (std::isfinite(scatter_e) ? Fmt(scatter_e, 2) : "-") << ", chi2/dof "
-     << (std::isfinite(chi2_dof) ? Fmt(chi2_dof, 3) : "-") << " (" << FitOutcomeName(outcome)
-     << ")";
+  os << ", scatter " << (std::isfinite(scatter_e) ? FormatGeneral(scatter_e, 2) : "-")
+     << ", chi2/dof " << (std::isfinite(chi2_dof) ? FormatGeneral(chi2_dof, 3) : "-") << " ("
+     << FitOutcomeName(outcome) << ")";
   return os.str();
 }
 
@@ -63,9 +64,9 @@ std::string Calibration::FullReport() const {
   for (const auto& p : parameters) w = std::max(w, p.name.size());
   for (const auto& p : parameters) {
     os << "  " << std::left << std::setw(static_cast<int>(w)) << p.name << " = " << std::setw(12)
-       << Fmt(p.value, 7);
+       << FormatGeneral(p.value, 7);
     if (!p.fixed && std::isfinite(p.sigma)) {
-      os << " ± " << std::setw(10) << Fmt(p.sigma, 3);
+      os << " ± " << std::setw(10) << FormatGeneral(p.sigma, 3);
     } else {
       os << "   " << std::setw(10) << "";
     }
@@ -87,33 +88,35 @@ std::string Calibration::FullReport() const {
     os << "  " << r.name << ": " << r.impacts
        << (strategy == FitStrategy::kTrajectory ? " impacts" : " bounces");
     if (strategy == FitStrategy::kTrajectory) {
-      os << " (" << r.simulated_impacts << " simulated), v0 = " << Fmt(r.impact_speed_m_s, 6);
+      os << " (" << r.simulated_impacts
+         << " simulated), v0 = " << FormatGeneral(r.impact_speed_m_s);
       if (r.impact_speed_fixed) {
         os << " m/s (from the scene's drop)";
       } else {
-        os << " ± " << Fmt(r.impact_speed_sigma_m_s, 2) << " m/s";
+        os << " ± " << FormatGeneral(r.impact_speed_sigma_m_s, 2) << " m/s";
       }
       os << ", t0 = " << std::fixed << std::setprecision(7) << r.time_origin_s << std::defaultfloat
-         << " ± " << Fmt(r.time_origin_sigma_s * 1e6, 2) << " us";
+         << " ± " << FormatGeneral(r.time_origin_sigma_s * 1e6, 2) << " us";
     }
     os << ", rms " << FormatResidual(r.rms_residual, residual_unit) << "\n";
   }
   os << "fit: " << num_residuals << " residuals, " << num_free << " free parameters + scatter, dof "
-     << dof << ", chi2/dof " << (std::isfinite(chi2_dof) ? Fmt(chi2_dof, 4) : "-")
+     << dof << ", chi2/dof " << (std::isfinite(chi2_dof) ? FormatGeneral(chi2_dof, 4) : "-")
      << " (timing + scatter), rms residual " << FormatResidual(rms_residual, residual_unit) << "\n";
-  os << "     AIC " << Fmt(aic, 6) << ", BIC " << Fmt(bic, 6) << ", " << iterations
+  os << "     AIC " << FormatGeneral(aic) << ", BIC " << FormatGeneral(bic) << ", " << iterations
      << " iterations, " << simulations << " simulations\n";
   const auto det = Determined();
   const auto und = Undetermined();
   os << "determined by the sound: " << (det.empty() ? "(none)" : Join(det)) << "\n";
   os << "not determined by the sound: " << (und.empty() ? "(none)" : Join(und)) << "\n";
   if (!e_of_v.empty()) {
-    os << "e(v) over the measured speeds " << Fmt(v_min_m_s, 4) << " .. " << Fmt(v_max_m_s, 4)
+    os << "e(v) over the measured speeds " << FormatGeneral(v_min_m_s, 4) << " .. "
+       << FormatGeneral(v_max_m_s, 4)
        << " m/s (the law's mean e; single bounces scatter by the scatter above):\n"
        << "    v (m/s)        e      sigma\n";
     for (const auto& pt : e_of_v) {
-      os << "  " << std::setw(9) << Fmt(pt.v_m_s, 4) << "  " << std::setw(9) << Fmt(pt.e, 6) << "  "
-         << std::setw(9) << Fmt(pt.sigma, 2) << "\n";
+      os << "  " << std::setw(9) << FormatGeneral(pt.v_m_s, 4) << "  " << std::setw(9)
+         << FormatGeneral(pt.e) << "  " << std::setw(9) << FormatGeneral(pt.sigma, 2) << "\n";
     }
   }
   return os.str();
@@ -123,7 +126,7 @@ std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
                                const std::vector<double>& speeds_m_s) {
   std::ostringstream os;
   os << "| rank | law | outcome | fitted | scatter | chi2/dof | AIC | dAIC |";
-  for (double v : speeds_m_s) os << " e(" << Fmt(v, 3) << " m/s) |";
+  for (double v : speeds_m_s) os << " e(" << FormatGeneral(v, 3) << " m/s) |";
   os << "\n|---|---|---|---|---|---|---|---|";
   for (size_t i = 0; i < speeds_m_s.size(); ++i) os << "---|";
   os << "\n";
@@ -140,10 +143,11 @@ std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
     }
     std::vector<std::string> fitted;
     for (const auto& p : c.parameters) {
-      if (!p.fixed) fitted.push_back(p.name + "=" + Fmt(p.value, 4));
+      if (!p.fixed) fitted.push_back(p.name + "=" + FormatGeneral(p.value, 4));
     }
-    os << Join(fitted, " ") << " | " << Fmt(c.scatter_e, 2) << " | " << Fmt(c.chi2_dof, 3) << " | "
-       << Fmt(c.aic, 6) << " | " << Fmt(r.delta_aic, 4) << " |";
+    os << Join(fitted, " ") << " | " << FormatGeneral(c.scatter_e, 2) << " | "
+       << FormatGeneral(c.chi2_dof, 3) << " | " << FormatGeneral(c.aic) << " | "
+       << FormatGeneral(r.delta_aic, 4) << " |";
     // e(v) by interpolating the fitted table (log-linear in v), clamped to its range.
     for (double v : speeds_m_s) {
       double e = std::nan("");
@@ -163,7 +167,7 @@ std::string LawComparisonTable(const std::vector<LawComparisonRow>& rows,
           }
         }
       }
-      os << " " << (std::isfinite(e) ? Fmt(e, 5) : std::string("-")) << " |";
+      os << " " << (std::isfinite(e) ? FormatGeneral(e, 5) : std::string("-")) << " |";
     }
     os << "\n";
   }

@@ -6,7 +6,9 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "bouncecal/core/stats.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "fit/calibrate_stages.hpp"
 
@@ -15,23 +17,10 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string Fmt(double v, int prec = 4) {
-  std::ostringstream os;
-  os << std::setprecision(prec) << v;
-  return os.str();
-}
-
 std::string Join(const std::vector<std::string>& v) {
   std::string out;
   for (size_t i = 0; i < v.size(); ++i) out += (i ? ", " : "") + v[i];
   return out;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 void ClampIntoBounds(const LawSetup& s, std::vector<double>* p) {
@@ -314,12 +303,13 @@ std::vector<std::vector<double>> MakeStarts(FitProblem* fp, std::atomic<long>* s
   if (fp->options.seed_from_inverse_map && have_e) {
     if (auto q = InverseMapStart(s, fp->e_median, fp->v_median)) {
       starts.push_back(*q);
-      fp->seed_note = "start from the inverse map e -> damping at e = " + Fmt(fp->e_median) +
-                      ", v = " + Fmt(fp->v_median) + " m/s";
+      fp->seed_note =
+          "start from the inverse map e -> damping at e = " + FormatGeneral(fp->e_median, 4) +
+          ", v = " + FormatGeneral(fp->v_median, 4) + " m/s";
     }
     if (auto q = ScanStart(s, fp->e_median, fp->v_median, fp->g, fp->sim, simulations)) {
       if (starts.empty()) {
-        fp->seed_note = "start from a scan of the damping at e = " + Fmt(fp->e_median);
+        fp->seed_note = "start from a scan of the damping at e = " + FormatGeneral(fp->e_median, 4);
       }
       starts.push_back(*q);
     }

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "fit/calibrate_stages.hpp"
 
 namespace bouncecal::calib {
@@ -15,12 +16,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Singular values below this fraction of the largest span the numerical null space
 // (sqrt of double precision's ~1e-16 relative noise in J^T J).
 constexpr double kNullSpaceRatio = 1e-8;
-
-std::string Fmt(double v, int prec = 3) {
-  std::ostringstream os;
-  os << std::setprecision(prec) << v;
-  return os.str();
-}
 
 std::vector<int> ActiveOf(const Solution& s) {
   std::vector<int> a;
@@ -169,12 +164,12 @@ Solution SolveFromStarts(const FitProblem& fp, const std::vector<std::vector<dou
       if (d > 2.0 && tr.cost - best_cost <= 2.0) {
         report->disagree = true;
         std::ostringstream os;
-        os << "a start ends " << Fmt(d, 2) << " sigma away with chi2 within "
-           << Fmt(2.0 * (tr.cost - best_cost), 2) << " of the best (";
+        os << "a start ends " << FormatGeneral(d, 2) << " sigma away with chi2 within "
+           << FormatGeneral(2.0 * (tr.cost - best_cost), 2) << " of the best (";
         for (size_t j = 0; j < active.size(); ++j) {
           const size_t i = static_cast<size_t>(fp.setup.free[static_cast<size_t>(active[j])]);
-          os << (j ? ", " : "") << fp.setup.specs()[i].name << " " << Fmt(tr.p[i], 4) << " vs "
-             << Fmt(ref.p[i], 4);
+          os << (j ? ", " : "") << fp.setup.specs()[i].name << " " << FormatGeneral(tr.p[i], 4)
+             << " vs " << FormatGeneral(ref.p[i], 4);
         }
         os << ")";
         report->note = os.str();
@@ -219,11 +214,12 @@ std::vector<bool> FindUndetermined(const Solution& s, const FitProblem& fp,
       const size_t a = static_cast<size_t>(active[cols[c]]);
       const std::string name = fp.setup.specs()[static_cast<size_t>(fp.setup.free[a])].name;
       out[a] = true;
-      (*why)[a] = null[c] ? name +
-                                ": the fitted quantities do not change with it (or only "
-                                "together with another parameter) at the measured speeds"
-                          : name + ": its relative sigma " + Fmt(rel[c], 2) + " exceeds " +
-                                Fmt(fp.options.undetermined_relative_sigma, 2);
+      (*why)[a] = null[c]
+                      ? name +
+                            ": the fitted quantities do not change with it (or only "
+                            "together with another parameter) at the measured speeds"
+                      : name + ": its relative sigma " + FormatGeneral(rel[c], 2) + " exceeds " +
+                            FormatGeneral(fp.options.undetermined_relative_sigma, 2);
     }
     if (!only_freed || drop.empty()) break;
     std::vector<size_t> rest;

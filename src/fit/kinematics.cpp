@@ -30,6 +30,7 @@
 #include <string>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/fit/bounce_screen.hpp"
 #include "bouncecal/physics/flight.hpp"
 #include "fit/text.hpp"
@@ -38,8 +39,6 @@ namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-using fit_text::Printf;
 
 }  // namespace
 

@@ -16,14 +16,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "fit/calibrate_stages.hpp"
 #include "fit/text.hpp"
 
 namespace bouncecal::calib {
 namespace {
-
-using fit_text::Fmt;
 
 // Upper tail of chi2 with 1 or 2 degrees of freedom.
 double Chi2Survival(double chi2, int dof) {
@@ -138,11 +137,12 @@ std::string LawShapeHint(const FitProblem& fp, const std::string& law) {
 }
 
 std::string MisfitText(const LawMisfit& m) {
-  return "the law's e(v) differs from a smoother fit through the bounces by " + Fmt(m.rms_e, 2) +
-         " rms (likelihood ratio chi2 = " + Fmt(m.chi2, 3) + " for " + std::to_string(m.dof) +
-         " dof, p = " + Fmt(m.p_value, 2) + ", each with its own scatter); tolerance " +
-         Fmt(m.tolerance_e, 2) + " (the larger of the e a simulator must reproduce and the " +
-         "ball's scatter about that fit, " + Fmt(m.scatter_e, 2) + ")";
+  return "the law's e(v) differs from a smoother fit through the bounces by " +
+         FormatGeneral(m.rms_e, 2) + " rms (likelihood ratio chi2 = " + FormatGeneral(m.chi2, 3) +
+         " for " + std::to_string(m.dof) + " dof, p = " + FormatGeneral(m.p_value, 2) +
+         ", each with its own scatter); tolerance " + FormatGeneral(m.tolerance_e, 2) +
+         " (the larger of the e a simulator must reproduce and the " +
+         "ball's scatter about that fit, " + FormatGeneral(m.scatter_e, 2) + ")";
 }
 
 }  // namespace bouncecal::calib

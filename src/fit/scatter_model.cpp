@@ -7,6 +7,7 @@
 // D has three entries per row (t_{k-1}, t_k, t_{k+1}), so C_t is banded (neighbouring points
 // share two onsets).
 #include "bouncecal/fit/scatter_model.hpp"
+#include "bouncecal/core/stats.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -16,12 +17,6 @@ namespace bouncecal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return kNaN;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 }  // namespace
 
@@ -109,7 +104,7 @@ ScatterProblem::ScatterProblem(Eigen::VectorXd r, Eigen::MatrixXd J, Eigen::Matr
     if (ct_(k, k) > 0.0) dt.push_back(ct_(k, k));
     if (ggt_(k, k) > 0.0) dg.push_back(ggt_(k, k));
   }
-  const double mt = Median(dt), mg = Median(dg);
+  const double mt = UpperMedian(dt), mg = UpperMedian(dg);
   scale_ = std::isfinite(mt) && std::isfinite(mg) && mg > 0.0 ? std::sqrt(mt / mg) : 1e-6;
   if (!(scale_ > 0.0)) scale_ = 1e-6;
   column_norm_ = j_.colwise().norm().transpose();
@@ -343,16 +338,6 @@ ScatterFit ScatterProblem::Fit() const {
     fit.sigma_sigma = b < hi ? 0.5 * (a + b) : kNaN;
   }
   return fit;
-}
-
-double NormalQuantileTwoSided(double alpha) {
-  // Bisection on erfc: P(|Z| > z) = erfc(z / sqrt 2).
-  double a = 0.0, b = 40.0;
-  for (int i = 0; i < 200; ++i) {
-    const double c = 0.5 * (a + b);
-    (std::erfc(c / std::sqrt(2.0)) > alpha ? a : b) = c;
-  }
-  return 0.5 * (a + b);
 }
 
 }  // namespace bouncecal

@@ -1,5 +1,6 @@
 // Scene values in a probably wrong unit (scene_checks.hpp).
 #include "bouncecal/fit/scene_checks.hpp"
+#include "bouncecal/core/format.hpp"
 #include "fit/text.hpp"
 
 #include <cmath>
@@ -14,8 +15,6 @@ constexpr double kMinDiameterM = 1e-4, kMaxDiameterM = 1.0;
 constexpr double kMaxHeightM = 50.0;
 constexpr double kMinDensity = 10.0, kMaxDensity = 25000.0;
 constexpr double kMinG = 1.0, kMaxG = 30.0;
-
-using fit_text::Printf;
 
 // The units (in the given order of likelihood) that would bring v, read as metres, into
 // [lo, hi]: "centimetres (1.5 m) or millimetres (0.15 m)", or "".

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 
@@ -17,8 +18,6 @@ namespace bouncecal {
 namespace {
 
 // Shortest representation that reads back to the same double.
-std::string Num(double v) { return ShortestNumber(v); }
-
 std::string Trim(const std::string& s) {
   const size_t b = s.find_first_not_of(" \t");
   if (b == std::string::npos) return "";
@@ -48,10 +47,10 @@ bool ParseLawSet(const std::string& set, std::string* name, double* value, std::
     *why = what + " is not a number";
   } else if (errno == ERANGE && std::abs(*value) <= std::numeric_limits<double>::min()) {
     // strtod flags underflow for magnitudes below the smallest normal double.
-    *why = what + " is too small: below " + Num(std::numeric_limits<double>::min()) +
+    *why = what + " is too small: below " + FormatShortest(std::numeric_limits<double>::min()) +
            " (the smallest normal double) it cannot be computed with; give 0 or a larger value";
   } else if (errno == ERANGE) {
-    *why = what + " is too large: above " + Num(std::numeric_limits<double>::max()) +
+    *why = what + " is too large: above " + FormatShortest(std::numeric_limits<double>::max()) +
            " (the largest double)";
   } else if (!std::isfinite(*value)) {
     *why = what + " is not finite";
@@ -115,7 +114,7 @@ void ApplyBallAndDrop(const SceneOverrides& o, Scene* scene) {
   if (o.height_sigma_m) {
     if (!o.height_m && (o.scene_file.empty() || !scene->drop.height_m)) {
       throw Error(ErrorCode::kBadParameter,
-                  "SceneOverrides::height_sigma_m " + Num(*o.height_sigma_m) +
+                  "SceneOverrides::height_sigma_m " + FormatShortest(*o.height_sigma_m) +
                       ": the drop height it belongs to is not given (give "
                       "SceneOverrides::height_m, or a scene file with [drop] height_m)");
     }
@@ -157,15 +156,17 @@ bool SceneOverrides::IsValid(std::string* error) const {
   auto positive = [&why](const std::optional<double>& v, const char* field, bool zero_ok) {
     if (!v || (std::isfinite(*v) && (zero_ok ? *v >= 0.0 : *v > 0.0))) return true;
     why = std::string("SceneOverrides::") + field + ": must be finite and " +
-          (zero_ok ? ">= 0" : "> 0") + " (got " + Num(*v) + ")";
+          (zero_ok ? ">= 0" : "> 0") + " (got " + FormatShortest(*v) + ")";
     return false;
   };
   if (mass_kg && density_kg_m3) {
-    why = "SceneOverrides::mass_kg " + Num(*mass_kg) + " and SceneOverrides::density_kg_m3 " +
-          Num(*density_kg_m3) + ": give one of them";
+    why = "SceneOverrides::mass_kg " + FormatShortest(*mass_kg) +
+          " and SceneOverrides::density_kg_m3 " + FormatShortest(*density_kg_m3) +
+          ": give one of them";
   } else if (height_m && impact_speed_m_s) {
-    why = "SceneOverrides::height_m " + Num(*height_m) + " and SceneOverrides::impact_speed_m_s " +
-          Num(*impact_speed_m_s) + ": give one of them";
+    why = "SceneOverrides::height_m " + FormatShortest(*height_m) +
+          " and SceneOverrides::impact_speed_m_s " + FormatShortest(*impact_speed_m_s) +
+          ": give one of them";
   } else if (!material.empty() && FindMaterial(material) == nullptr) {
     std::string known;
     for (const MaterialPreset& p : MaterialPresets()) known += (known.empty() ? "" : ", ") + p.name;
@@ -174,9 +175,9 @@ bool SceneOverrides::IsValid(std::string* error) const {
              !positive(density_kg_m3, "density_kg_m3", false) ||
              !positive(mass_kg, "mass_kg", false)) {
   } else if (height_sigma_m && impact_speed_m_s) {
-    why = "SceneOverrides::height_sigma_m " + Num(*height_sigma_m) +
+    why = "SceneOverrides::height_sigma_m " + FormatShortest(*height_sigma_m) +
           " is the uncertainty of a drop height, but SceneOverrides::impact_speed_m_s " +
-          Num(*impact_speed_m_s) + " replaces the height";
+          FormatShortest(*impact_speed_m_s) + " replaces the height";
   } else if (!positive(height_m, "height_m", false) ||
              !positive(impact_speed_m_s, "impact_speed_m_s", false) ||
              !positive(height_sigma_m, "height_sigma_m", true)) {
@@ -262,26 +263,28 @@ std::vector<Assumed> AssumedValues(const GivenScene& gs, bool for_calibration) {
   auto add = [&](const std::string& key, const std::string& value, const std::string& note) {
     if (!gs.Given(key)) out.push_back({key, value, note});
   };
-  add("environment.g_m_s2", Num(s.environment.g_m_s2), "gravity; the seed paper's value");
+  add("environment.g_m_s2", FormatShortest(s.environment.g_m_s2),
+      "gravity; the seed paper's value");
   add("effects.drag", DragModelName(s.effects.drag), "air drag in the flights");
   add("effects.buoyancy", s.effects.buoyancy ? "true" : "false", "buoyancy in the flights");
   add("effects.contact_duration", s.effects.contact_duration ? "true" : "false",
       "contact time taken out of the intervals");
   const bool drag = s.effects.drag != DragModel::kNone;
   if (drag || s.effects.buoyancy) {
-    add("environment.air_density_kg_m3", Num(s.environment.air_density_kg_m3),
+    add("environment.air_density_kg_m3", FormatShortest(s.environment.air_density_kg_m3),
         "air (drag, buoyancy)");
   }
   if (drag)
-    add("environment.drag_coefficient", Num(s.environment.drag_coefficient), "smooth sphere");
+    add("environment.drag_coefficient", FormatShortest(s.environment.drag_coefficient),
+        "smooth sphere");
   if (gs.drop_given && s.drop.height_m && !s.drop.height_sigma_m) {
     out.push_back({"drop.height_sigma_m", "0", "the drop height is taken as exact"});
   }
   const bool needs_ball =
       for_calibration || drag || s.effects.buoyancy || s.effects.contact_duration;
   if (needs_ball && !gs.ball_given) {
-    add("ball.diameter_m", Num(s.ball.diameter_m), "the ball (seed 002's steel ball)");
-    add("ball.density_kg_m3", Num(s.ball.Density()), "the ball's density");
+    add("ball.diameter_m", FormatShortest(s.ball.diameter_m), "the ball (seed 002's steel ball)");
+    add("ball.density_kg_m3", FormatShortest(s.ball.Density()), "the ball's density");
   }
   if (s.effects.contact_duration || for_calibration) {
     add("ball.material", s.ball.material, "elastic constants (Hertz stiffness, contact time)");

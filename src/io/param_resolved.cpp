@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "bouncecal/physics/law_registry.hpp"
 #include "bouncecal/physics/simulator.hpp"
@@ -19,8 +20,6 @@ using nlohmann::json;
 json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 // Shortest text that reads back to the same double.
-std::string Text(double v) { return ShortestNumber(v); }
-
 // E* of ball on surface: the one rule (EffectiveModulusPa, scene.hpp); NaN (null in the file)
 // when either body's elastic constants are unknown.
 double EffectiveModulus(const Scene& s) {
@@ -117,8 +116,8 @@ void CheckResolved(const json& resolved, const char* a, const char* b, double ex
   const double tol = 1e-9 * std::max(std::abs(expected), std::abs(stored));
   if (!(std::abs(stored - expected) <= tol)) {
     throw Error(ErrorCode::kBadParameter,
-                path + ": resolved." + a + "." + b + " = " + Text(stored) +
-                    " disagrees with the file's scene (" + Text(expected) +
+                path + ": resolved." + a + "." + b + " = " + FormatShortest(stored) +
+                    " disagrees with the file's scene (" + FormatShortest(expected) +
                     "); edit the scene (scene_toml), not the resolved values");
   }
 }

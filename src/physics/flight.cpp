@@ -29,6 +29,7 @@
 #include <string>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 
 namespace bouncecal {
 namespace {
@@ -146,18 +147,12 @@ double LinearDescentYForLaunch(double x) {
   return x < 1e-8 ? x - x * x / 6.0 : LinearDescentY(Psi(x));
 }
 
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
 // A flight input must be finite and >= 0. The message names the quantity and where it comes
 // from (the scene's drop, or a rebound), not this class's functions: users never call them.
 void CheckFinite(double value, const char* what, const char* unit) {
   if (!std::isfinite(value) || value < 0.0) {
     throw Error(ErrorCode::kBadParameter,
-                std::string("ball flight: ") + what + " = " + Num(value) + " " + unit +
+                std::string("ball flight: ") + what + " = " + FormatGeneral(value) + " " + unit +
                     " must be a finite number >= 0 (check the drop height or impact speed, "
                     "environment.g_m_s2 and the contact law's parameters)");
   }

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/core/user_text.hpp"
 #include "physics/laws/law_base.hpp"
 
@@ -33,11 +34,18 @@ struct LawRow {
   ContactEnd end_rule;
   bool needs_expression;  // defined by LawSpec::expression
   unsigned closed_forms;  // ClosedForm bits
+  ExportMapping export_mapping;
+  const char* export_note;  // kConstantLinear: why no native law ("{target}": the simulator)
   LawFactory make;
 };
 
 constexpr ContactEnd kOverlap = ContactEnd::kOverlapZero;
 constexpr ContactEnd kForce = ContactEnd::kForceZero;
+constexpr ExportMapping kToLinear = ExportMapping::kLinearDashpot;
+constexpr ExportMapping kToConstantLinear = ExportMapping::kConstantLinear;
+constexpr ExportMapping kToTsuji = ExportMapping::kHertzTsuji;
+constexpr ExportMapping kToViscoelastic = ExportMapping::kHertzViscoelastic;
+constexpr ExportMapping kToClosestHertz = ExportMapping::kClosestHertz;
 
 }  // namespace
 
@@ -49,8 +57,8 @@ constexpr ContactEnd kForce = ContactEnd::kForceZero;
 //      closed forms it has), ending with
 //        template std::unique_ptr<LawBase> MakeLaw<L>(const LawSpec&, const Scene&);
 //   2. add ONE row below: name, summary, formula, source, end rule, needs an expression,
-//      closed forms, MakeLaw<class L> (the `class L` there declares the class; nothing else
-//      anywhere names the law).
+//      closed forms, export mapping (and its note), MakeLaw<class L> (the `class L` there
+//      declares the class; nothing else anywhere names the law).
 // Tests pick the law up from the table (the oracle comparison, the derivative checks, the
 // registry consistency test: the closed forms the row lists must exist). Parameters are set by
 // name by CreateLaw (unknown names, NaN, out-of-bounds values are rejected there), so a law only
@@ -61,49 +69,54 @@ constexpr ContactEnd kForce = ContactEnd::kForceZero;
 static const LawRow kLaws[] = {
     {"linear-dashpot", "linear spring-dashpot (Cundall-Strack), contact ends at overlap 0",
      "F = k d + c d'", "Cundall & Strack 1979; closed form: damped oscillator (docs/physics.md §3)",
-     kOverlap, false, kAllLinear, MakeLaw<class LinearDashpot>},
+     kOverlap, false, kAllLinear, kToLinear, "", MakeLaw<class LinearDashpot>},
     {"linear-dashpot-force-zero",
      "linear spring-dashpot, contact ends when the force reaches 0 (ball detaches early)",
      "F = k d + c d'", "Cundall & Strack 1979; closed form: damped oscillator (docs/physics.md §3)",
-     kForce, false, kAllLinear, MakeLaw<class LinearDashpot>},
+     kForce, false, kAllLinear, kToLinear, "", MakeLaw<class LinearDashpot>},
     {"walton-braun", "seed 002's law: (1+gamma) k loading, (1-gamma) k unloading",
      "F = (1 + gamma) k d if d' > 0, (1 - gamma) k d otherwise",
      "Zhong et al., Acta Phys. Sin. 58 (2009), eqs. 3-4 and 23 (seed 002)", kOverlap, false,
-     kAllLinear, MakeLaw<class WaltonBraun>},
+     kAllLinear, kToConstantLinear,
+     "the seed law's (1 +- gamma) k branches are not native in {target}",
+     MakeLaw<class WaltonBraun>},
     {"walton-braun-hysteretic", "Walton-Braun hysteresis: load k1, unload k2 with plastic offset",
      "F = k1 d loading, k2 (d - d0) unloading, d0 = dmax (1 - k1/k2)",
      "Walton & Braun, J. Rheol. 30 (1986) 949; e^2 = k1/k2 (docs/physics.md §3)", kForce, false,
-     kAllLinear, MakeLaw<class WaltonBraunHysteretic>},
+     kAllLinear, kToConstantLinear,
+     "Walton-Braun hysteresis with constant k2 is not native in {target} (LIGGGHTS "
+     "hooke/hysteresis lets k2 grow with the overlap)",
+     MakeLaw<class WaltonBraunHysteretic>},
     {"hertz-tsuji", "Hertz + viscous damping d^1/4 (Tsuji 1992), speed-independent e",
      "F = k d^1.5 + alpha(e) sqrt(m* k) d^0.25 d'",
      "Tsuji et al., Powder Technol. 71 (1992) 239, eq. 12; alpha(e) exact (master curve)", kOverlap,
-     false, kMasterCurve, MakeLaw<class HertzTsuji>},
+     false, kMasterCurve, kToTsuji, "", MakeLaw<class HertzTsuji>},
     {"hertz-viscoelastic", "viscoelastic Hertz (Brilliantov 1996 / Kuwabara-Kono), e falls with v",
      "F = k (d^1.5 + 1.5 A d^0.5 d')",
      "Brilliantov et al., PRE 53 (1996) 5382; Ramirez et al., PRE 60 (1999) 4465", kOverlap, false,
-     kMasterCurve, MakeLaw<class HertzViscoelastic>},
+     kMasterCurve, kToViscoelastic, "", MakeLaw<class HertzViscoelastic>},
     {"hunt-crossley", "Hunt-Crossley k d^n (1 + alpha d'), alpha given", "F = k d^n (1 + alpha d')",
-     "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false, kNone,
+     "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false, kNone, kToClosestHertz, "",
      MakeLaw<class HuntCrossley>},
     {"hunt-crossley-hc", "Hunt-Crossley with alpha = 3(1-e)/(2 v0) from target e, v0",
      "F = k d^n (1 + alpha d'), alpha = 3(1-e)/(2 v0)",
-     "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false, kNone,
+     "Hunt & Crossley, J. Appl. Mech. 42 (1975) 440", kOverlap, false, kNone, kToClosestHertz, "",
      MakeLaw<class HuntCrossleyHC>},
     {"hunt-crossley-ln", "Hunt-Crossley with Lankarani-Nikravesh alpha = 3(1-e^2)/(4 v0)",
      "F = k d^n (1 + alpha d'), alpha = 3(1-e^2)/(4 v0)",
-     "Lankarani & Nikravesh, J. Mech. Des. 112 (1990) 369", kOverlap, false, kNone,
-     MakeLaw<class HuntCrossleyLN>},
+     "Lankarani & Nikravesh, J. Mech. Des. 112 (1990) 369", kOverlap, false, kNone, kToClosestHertz,
+     "", MakeLaw<class HuntCrossleyLN>},
     {"hunt-crossley-flores", "Hunt-Crossley with Flores alpha = 8(1-e)/(5 e v0)",
      "F = k d^n (1 + alpha d'), alpha = 8(1-e)/(5 e v0)",
-     "Flores et al., Mech. Mach. Theory 46 (2011) 1359", kOverlap, false, kNone,
-     MakeLaw<class HuntCrossleyFlores>},
+     "Flores et al., Mech. Mach. Theory 46 (2011) 1359", kOverlap, false, kNone, kToClosestHertz,
+     "", MakeLaw<class HuntCrossleyFlores>},
     {"jiang-liu", "Jiang-Liu thermodynamic law (seed 000), relaxation energy w_r, normal only",
      "F = k d^1.5 + a w_r^0.25 Theta(d/D) d', dw_r/dt = a w_r^0.25 Theta d'^2 - w_r/tau",
      "Jiang & Liu, Acta Phys. Sin. 67 (2018) 044502, eqs. 28-33, 37-39 (seed 000)", kOverlap, false,
-     kNone, MakeLaw<class JiangLiu>},
+     kNone, kToClosestHertz, "", MakeLaw<class JiangLiu>},
     {"expression", "user-defined force from a muParser expression in d, v and named parameters",
      "F = user expression in d, v and named parameters", "user-defined (muParser expression)",
-     kOverlap, true, kNone, MakeLaw<class Expression>},
+     kOverlap, true, kNone, kToClosestHertz, "", MakeLaw<class Expression>},
 };
 
 }  // namespace laws
@@ -121,6 +134,8 @@ LawInfo InfoOf(const LawRow& row) {
   info.source = row.source;
   info.end_rule = row.end_rule;
   info.needs_expression = row.needs_expression;
+  info.export_mapping = row.export_mapping;
+  info.export_note = row.export_note;
   const std::pair<unsigned, const char*> forms[] = {
       {laws::kRestitution, "restitution"},       {laws::kContactTime, "contact_time"},
       {laws::kSolveContact, "solve_contact"},    {laws::kInverse, "damping_for_restitution"},
@@ -148,13 +163,6 @@ std::string KnownNames() {
     out += row.name;
   }
   return out;
-}
-
-std::string Num(double v) {
-  std::ostringstream os;
-  os.precision(10);
-  os << v;
-  return os.str();
 }
 
 }  // namespace
@@ -210,12 +218,14 @@ std::unique_ptr<ContactLaw> CreateLaw(const LawSpec& spec, const Scene& scene) {
       std::string names;
       for (const ParameterSpec& s : specs) names += (names.empty() ? "" : ", ") + s.name;
       throw Error(ErrorCode::kBadParameter,
-                  "law " + spec.name + ": unknown parameter '" + Abbreviate(key) + "' = " +
-                      Num(value) + " (parameters: " + (names.empty() ? "none" : names) + ")");
+                  "law " + spec.name + ": unknown parameter '" + Abbreviate(key) +
+                      "' = " + FormatGeneral(value, 10) +
+                      " (parameters: " + (names.empty() ? "none" : names) + ")");
     }
     if (!std::isfinite(value)) {
       throw Error(ErrorCode::kBadParameter, "law " + spec.name + ": parameter " + key + " = " +
-                                                Num(value) + " is not a finite number");
+                                                FormatGeneral(value, 10) +
+                                                " is not a finite number");
     }
     values[static_cast<size_t>(at)] = value;
   }

@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/physics/contact_dynamics.hpp"
 #include "bouncecal/physics/contact_integrator.hpp"
 #include "bouncecal/physics/flight.hpp"
@@ -22,13 +23,6 @@ namespace bouncecal {
 namespace {
 
 using Jet = SensitivityJet;
-
-std::string Num(double v) {
-  std::ostringstream os;
-  os.precision(6);
-  os << v;
-  return os.str();
-}
 
 double Val(double x) { return x; }
 double Val(const Jet& x) { return x.a; }
@@ -84,8 +78,8 @@ ContactRun FromClosedForm(const ContactLaw& law, const ContactOutcome& cf, const
   const double m = body.mass_kg;
   if (cf.stuck || !(cf.restitution > 0.0) || cf.restitution * v_in <= stuck_speed_m_s) {
     r.end = ContactRun::End::kStuck;
-    r.detail =
-        law.Name() + ": closed form gives no rebound (restitution " + Num(cf.restitution) + ")";
+    r.detail = law.Name() + ": closed form gives no rebound (restitution " +
+               FormatGeneral(cf.restitution) + ")";
     r.contact_s = std::isfinite(cf.contact_time_s) ? cf.contact_time_s : 0.0;
     r.work_j = 0.5 * m * v_in * v_in;
     return r;
@@ -156,21 +150,23 @@ bool SimulatorOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(rel_tolerance > 0.0 && rel_tolerance < 1.0)) {
-    return fail("rel_tolerance = " + Num(rel_tolerance) + " must be in (0, 1)");
+    return fail("rel_tolerance = " + FormatGeneral(rel_tolerance) + " must be in (0, 1)");
   }
   if (!(abs_tolerance > 0.0 && abs_tolerance < 1.0)) {
-    return fail("abs_tolerance = " + Num(abs_tolerance) + " must be in (0, 1)");
+    return fail("abs_tolerance = " + FormatGeneral(abs_tolerance) + " must be in (0, 1)");
   }
-  if (rel_tolerance < 1e-15) return fail("rel_tolerance = " + Num(rel_tolerance) + " < 1e-15");
+  if (rel_tolerance < 1e-15)
+    return fail("rel_tolerance = " + FormatGeneral(rel_tolerance) + " < 1e-15");
   if (max_steps_per_contact < 10) {
     return fail("max_steps_per_contact = " + std::to_string(max_steps_per_contact) +
                 " must be >= 10");
   }
   if (!(time_resolution_s >= 0.0) || !std::isfinite(time_resolution_s)) {
-    return fail("time_resolution_s = " + Num(time_resolution_s) + " must be finite and >= 0");
+    return fail("time_resolution_s = " + FormatGeneral(time_resolution_s) +
+                " must be finite and >= 0");
   }
   if (!(stuck_restitution >= 0.0 && stuck_restitution < 1.0)) {
-    return fail("stuck_restitution = " + Num(stuck_restitution) + " must be in [0, 1)");
+    return fail("stuck_restitution = " + FormatGeneral(stuck_restitution) + " must be in [0, 1)");
   }
   return true;
 }
@@ -198,12 +194,12 @@ ContactOutcome SimulateContact(const ContactLaw& law, std::span<const double> pa
   if (!options.IsValid(&why)) throw Error(ErrorCode::kBadParameter, "simulator: " + why);
   if (!law.IsValid(params, body, &why)) throw Error(ErrorCode::kBadParameter, why);
   if (!(v_in_m_s > 0.0) || !std::isfinite(v_in_m_s)) {
-    throw Error(ErrorCode::kBadParameter,
-                "impact speed v_in = " + Num(v_in_m_s) + " m/s must be positive and finite");
+    throw Error(ErrorCode::kBadParameter, "impact speed v_in = " + FormatGeneral(v_in_m_s) +
+                                              " m/s must be positive and finite");
   }
   if (!(g_m_s2 >= 0.0) || !std::isfinite(g_m_s2)) {
     throw Error(ErrorCode::kBadParameter,
-                "gravity g = " + Num(g_m_s2) + " m/s^2 must be finite and >= 0");
+                "gravity g = " + FormatGeneral(g_m_s2) + " m/s^2 must be finite and >= 0");
   }
   SimulatorOptions o = options;
   o.gravity_in_contact = true;  // the caller's g is what it asks for
@@ -251,8 +247,8 @@ Setup Prepare(const Scene& scene, const ContactLaw& law, std::span<const double>
       throw Error(ErrorCode::kBadScene,
                   "surface compliance needs surface mass_kg > 0, stiffness_n_m > 0 and "
                   "damping_n_s_m >= 0 (got " +
-                      Num(pm.mass_kg) + ", " + Num(pm.stiffness_n_m) + ", " +
-                      Num(pm.damping_n_s_m) + ")");
+                      FormatGeneral(pm.mass_kg) + ", " + FormatGeneral(pm.stiffness_n_m) + ", " +
+                      FormatGeneral(pm.damping_n_s_m) + ")");
     }
     s.plate = &s.plate_model;
   }
@@ -306,161 +302,230 @@ void RecordSensitivities(const T& t, const T& v, const Contact<T>& c, size_t dir
   }
 }
 
-// The bounce loop in scalar type T (see the top of this file).
+// The bounce loop in scalar type T (see the top of this file): the drop, then contact and
+// flight, impact after impact, until a stage stops the run (each Stop... stage returns true
+// once it has called Stop).
 template <class T>
-Simulation Run(const Scene& scene, const ContactLaw& law, std::span<const double> params,
-               const SimulatorOptions& options, SimulationSensitivities* sens) {
-  Setup setup = Prepare(scene, law, params, options);
-  const double m = setup.body.mass_kg;
-  const FlightModel flight = FlightModel::FromScene(scene);
-  const double g = flight.gravity_m_s2();
-  const bool has_drag = flight.drag() != DragModel::kNone;
-  const SimulationLimits& lim = scene.limits;
-  Simulation sim;
-  EnergyLedger& en = sim.energy;
+class BounceRun {
+ public:
+  BounceRun(const Scene& scene, const ContactLaw& law, std::span<const double> params,
+            const SimulatorOptions& options, SimulationSensitivities* sens)
+      : scene_(scene),
+        law_(law),
+        params_(params),
+        options_(options),
+        sens_(sens),
+        setup_(Prepare(scene, law, params, options)),
+        m_(setup_.body.mass_kg),
+        flight_(FlightModel::FromScene(scene)),
+        g_(flight_.gravity_m_s2()),
+        has_drag_(flight_.drag() != DragModel::kNone),
+        lim_(scene.limits) {}
 
-  // Initial condition; for the sensitivities, direction P (after the parameters) is v_first.
-  T v(0.0);
-  if (scene.drop.impact_speed_m_s) {
-    v = T(*scene.drop.impact_speed_m_s);
-    en.initial_j = 0.5 * m * Val(v) * Val(v);
-  } else {
-    const double h = scene.drop.height_m.value_or(0.0);
-    v = T(flight.FallArrivalSpeed(h));
-    en.initial_j = m * g * h;  // potential energy in g_eff (buoyancy is conservative)
-    if (has_drag) en.dissipated_drag_j = en.initial_j - 0.5 * m * Val(v) * Val(v);
-  }
-  if constexpr (std::is_same_v<T, Jet>) v.v[static_cast<int>(params.size())] = 1.0;
-  T t(scene.drop.first_impact_time_s);
-
-  // The contact map (SimulatorOptions::contact_map), for the plain path only.
-  std::optional<ContactMap> map;
-  if (std::is_same_v<T, double> && options.contact_map)
-    map = MakeMap(setup, law, params, g, options, lim);
-  double last_ratio = 0.0;  // the latest arrival speed over the one before (0: none yet)
-
-  auto stop = [&](StopReason reason, const std::string& detail, double final_j) {
-    if (map) {
-      sim.total_steps += map->steps();
-      sim.map_panels = map->panels();
-      sim.map_panels_refused = map->refused();
+  Simulation Run() {
+    Drop();
+    for (;;) {
+      if (StopBeforeContact()) break;
+      const Contact<T> contact = NextContact();
+      Record(contact);
+      if (StopInContact(contact)) break;
+      if (StopInFlight(contact)) break;
     }
-    sim.stop_reason = reason;
-    sim.stop_detail = detail;
+    return std::move(sim_);
+  }
+
+ private:
+  // The first impact's speed and time; for the sensitivities, direction P (after the
+  // parameters) is v_first. The contact map (SimulatorOptions::contact_map), for the plain
+  // path only.
+  void Drop() {
+    EnergyLedger& en = sim_.energy;
+    if (scene_.drop.impact_speed_m_s) {
+      v_ = T(*scene_.drop.impact_speed_m_s);
+      en.initial_j = 0.5 * m_ * Val(v_) * Val(v_);
+    } else {
+      const double h = scene_.drop.height_m.value_or(0.0);
+      v_ = T(flight_.FallArrivalSpeed(h));
+      en.initial_j = m_ * g_ * h;  // potential energy in g_eff (buoyancy is conservative)
+      if (has_drag_) en.dissipated_drag_j = en.initial_j - 0.5 * m_ * Val(v_) * Val(v_);
+    }
+    if constexpr (std::is_same_v<T, Jet>) v_.v[static_cast<int>(params_.size())] = 1.0;
+    t_ = T(scene_.drop.first_impact_time_s);
+    if (std::is_same_v<T, double> && options_.contact_map)
+      map_ = MakeMap(setup_, law_, params_, g_, options_, lim_);
+  }
+
+  // Ends the run: the reason, its detail and the mechanical energy left.
+  void Stop(StopReason reason, const std::string& detail, double final_j) {
+    EnergyLedger& en = sim_.energy;
+    if (map_) {
+      sim_.total_steps += map_->steps();
+      sim_.map_panels = map_->panels();
+      sim_.map_panels_refused = map_->refused();
+    }
+    sim_.stop_reason = reason;
+    sim_.stop_detail = detail;
     en.final_mechanical_j = final_j;
     en.balance_error_j = en.initial_j - (en.final_mechanical_j + en.dissipated_contact_j +
                                          en.dissipated_drag_j + en.internal_j);
-    return sim;
-  };
+  }
 
-  while (true) {
-    const int k = static_cast<int>(sim.impacts.size());
-    const double vv = Val(v);
-    if (k >= lim.max_impacts) {
-      return stop(StopReason::kMaxImpacts,
-                  std::to_string(k) + " impacts simulated (limits.max_impacts)", 0.5 * m * vv * vv);
+  // The impact limit, or a ball at rest.
+  bool StopBeforeContact() {
+    k_ = static_cast<int>(sim_.impacts.size());
+    vv_ = Val(v_);
+    if (k_ >= lim_.max_impacts) {
+      Stop(StopReason::kMaxImpacts, std::to_string(k_) + " impacts simulated (limits.max_impacts)",
+           0.5 * m_ * vv_ * vv_);
+      return true;
     }
-    if (!(vv > lim.rest_speed_m_s) || vv == 0.0) {
-      return stop(StopReason::kAtRest,
-                  "arrival speed " + Num(vv) + " m/s at impact " + std::to_string(k) +
-                      " is below rest_speed_m_s = " + Num(lim.rest_speed_m_s),
-                  0.5 * m * vv * vv);
+    if (!(vv_ > lim_.rest_speed_m_s) || vv_ == 0.0) {
+      Stop(StopReason::kAtRest,
+           "arrival speed " + FormatGeneral(vv_) + " m/s at impact " + std::to_string(k_) +
+               " is below rest_speed_m_s = " + FormatGeneral(lim_.rest_speed_m_s),
+           0.5 * m_ * vv_ * vv_);
+      return true;
     }
-    const double stuck_speed = std::max(lim.rest_speed_m_s, options.stuck_restitution * vv);
+    return false;
+  }
+
+  // The contact at speed vv_: from the contact map when it serves, else integrated (or closed
+  // form).
+  Contact<T> NextContact() {
+    const double stuck_speed = std::max(lim_.rest_speed_m_s, options_.stuck_restitution * vv_);
     const std::optional<ContactRun> mapped =
-        map ? MappedContact(&*map, setup, law, params, g, options, vv, stuck_speed, last_ratio,
-                            lim.max_impacts - k)
-            : std::nullopt;
-    const Contact<T> contact = mapped
-                                   ? Contact<T>{*mapped, T(mapped->v_out_m_s), T(mapped->contact_s),
-                                                T(mapped->separation_depth_m)}
-                                   : OneContact<T>(law, params, *setup.dynamics, setup.body, v, g,
-                                                   setup.plate, options, stuck_speed);
-    if (mapped) ++sim.mapped_contacts;
+        map_ ? MappedContact(&*map_, setup_, law_, params_, g_, options_, vv_, stuck_speed,
+                             last_ratio_, lim_.max_impacts - k_)
+             : std::nullopt;
+    if (mapped) ++sim_.mapped_contacts;
+    return mapped ? Contact<T>{*mapped, T(mapped->v_out_m_s), T(mapped->contact_s),
+                               T(mapped->separation_depth_m)}
+                  : OneContact<T>(law_, params_, *setup_.dynamics, setup_.body, v_, g_,
+                                  setup_.plate, options_, stuck_speed);
+  }
+
+  void Record(const Contact<T>& contact) {
     const ContactRun& c = contact.run;
-    sim.total_steps += c.steps;
+    sim_.total_steps += c.steps;
     SimImpact imp;
-    imp.time_s = Val(t);
-    imp.v_in_m_s = vv;
+    imp.time_s = Val(t_);
+    imp.v_in_m_s = vv_;
     imp.v_out_m_s = c.end == ContactRun::End::kSeparated ? c.v_out_m_s : 0.0;
     imp.contact_s = c.contact_s;
     imp.peak_overlap_m = c.peak_overlap_m;
     imp.peak_force_n = c.peak_force_n;
     imp.steps = c.steps;
     imp.rejected_steps = c.rejected;
-    sim.impacts.push_back(imp);
-    if (sens) RecordSensitivities(t, v, contact, params.size() + 1, sens);
+    sim_.impacts.push_back(imp);
+    if (sens_) RecordSensitivities(t_, v_, contact, params_.size() + 1, sens_);
+  }
 
+  // A ball held in the contact (at rest, stuck, or the step limit); else the contact's energy.
+  bool StopInContact(const Contact<T>& contact) {
+    const ContactRun& c = contact.run;
+    EnergyLedger& en = sim_.energy;
     if (c.end != ContactRun::End::kSeparated) {
       // Ball held in the contact: what is left is mechanical (ball, law's elastic, plate).
       en.dissipated_contact_j += c.work_j - c.elastic_end_j - c.plate_end_j - c.internal_end_j;
       en.internal_j += c.internal_end_j;
       const double final_j = c.ball_energy_end_j + c.elastic_end_j + c.plate_end_j;
-      const std::string where = " at impact " + std::to_string(k) + " (t = " + Num(Val(t)) + " s)";
+      const std::string where =
+          " at impact " + std::to_string(k_) + " (t = " + FormatGeneral(Val(t_)) + " s)";
       if (c.end == ContactRun::End::kStepLimit) {
-        return stop(StopReason::kStepLimit, c.detail + where, final_j);
+        Stop(StopReason::kStepLimit, c.detail + where, final_j);
+        return true;
       }
-      const bool gravity_holds = vv < 10.0 * g * c.contact_time_scale_s;
-      return stop(
-          gravity_holds ? StopReason::kAtRest : StopReason::kStuck,
-          (gravity_holds ? "gravity holds the slow ball on the surface: " : "") + c.detail + where,
-          final_j);
+      const bool gravity_holds = vv_ < 10.0 * g_ * c.contact_time_scale_s;
+      Stop(gravity_holds ? StopReason::kAtRest : StopReason::kStuck,
+           (gravity_holds ? "gravity holds the slow ball on the surface: " : "") + c.detail + where,
+           final_j);
+      return true;
     }
     // Separated: the law's leftover elastic energy and the plate's energy are dissipated.
     en.dissipated_contact_j += c.work_j - c.internal_end_j;
     en.internal_j += c.internal_end_j;
+    return false;
+  }
 
-    // From the separation point (separation_depth_m below the surface level) to the level,
-    // in vacuum (see simulator.hpp), then the closed-form flight.
+  // From the separation point (separation_depth_m below the surface level) to the level, in
+  // vacuum (see simulator.hpp), then the closed-form flight to the next impact: stops when the
+  // ball cannot rise, past the horizon, or in a Zeno tail.
+  bool StopInFlight(const Contact<T>& contact) {
+    const ContactRun& c = contact.run;
+    EnergyLedger& en = sim_.energy;
     const T& v_sep = contact.v_out;
-    const T v0_sq = v_sep * v_sep - 2.0 * g * contact.depth;
+    const T v0_sq = v_sep * v_sep - 2.0 * g_ * contact.depth;
     if (!(Val(v0_sq) > 0.0)) {
-      return stop(StopReason::kAtRest,
-                  "the ball separates " + Num(c.separation_depth_m) + " m below the surface at " +
-                      Num(c.v_out_m_s) + " m/s and cannot rise above it (impact " +
-                      std::to_string(k) + ")",
-                  0.5 * m * Val(v0_sq));
+      Stop(StopReason::kAtRest,
+           "the ball separates " + FormatGeneral(c.separation_depth_m) +
+               " m below the surface at " + FormatGeneral(c.v_out_m_s) +
+               " m/s and cannot rise above it (impact " + std::to_string(k_) + ")",
+           0.5 * m_ * Val(v0_sq));
+      return true;
     }
     using std::sqrt;
     const T v0 = sqrt(v0_sq);
-    const T t_launch = t + contact.contact_s + (g > 0.0 ? Quotient(v_sep - v0, g) : T(0.0));
-    const T flight_s = FlightTimeOf(flight, v0);
-    const T v_next = ArrivalSpeedOf(flight, v0);
+    const T t_launch = t_ + contact.contact_s + (g_ > 0.0 ? Quotient(v_sep - v0, g_) : T(0.0));
+    const T flight_s = FlightTimeOf(flight_, v0);
+    const T v_next = ArrivalSpeedOf(flight_, v0);
     const T t_next = t_launch + flight_s;
     const double v0v = Val(v0);
-    if (Val(t_next) > lim.horizon_s) {
+    if (Val(t_next) > lim_.horizon_s) {
       double h = 0.0, vel = v0v;
-      if (lim.horizon_s > Val(t_launch)) flight.State(v0v, lim.horizon_s - Val(t_launch), &h, &vel);
-      const double final_j = m * g * h + 0.5 * m * vel * vel;
-      if (has_drag) en.dissipated_drag_j += 0.5 * m * v0v * v0v - final_j;
-      return stop(
-          StopReason::kHorizon,
-          "next impact at " + Num(Val(t_next)) + " s is beyond horizon_s = " + Num(lim.horizon_s),
-          final_j);
+      if (lim_.horizon_s > Val(t_launch))
+        flight_.State(v0v, lim_.horizon_s - Val(t_launch), &h, &vel);
+      const double final_j = m_ * g_ * h + 0.5 * m_ * vel * vel;
+      if (has_drag_) en.dissipated_drag_j += 0.5 * m_ * v0v * v0v - final_j;
+      Stop(StopReason::kHorizon,
+           "next impact at " + FormatGeneral(Val(t_next)) +
+               " s is beyond horizon_s = " + FormatGeneral(lim_.horizon_s),
+           final_j);
+      return true;
     }
-    if (has_drag) en.dissipated_drag_j += 0.5 * m * (v0v * v0v - Val(v_next) * Val(v_next));
+    if (has_drag_) en.dissipated_drag_j += 0.5 * m_ * (v0v * v0v - Val(v_next) * Val(v_next));
 
     // Zeno: with restitution e < 1 the remaining flights form (at most) a geometric series
     // T e / (1 - e) (flight time is proportional to, or grows slower than, the launch speed).
-    const double e = v0v / vv;
-    last_ratio = Val(v_next) / vv;
-    t = t_next;
-    v = v_next;
-    if (e < 1.0 && Val(flight_s) * e / (1.0 - e) < options.time_resolution_s) {
-      return stop(StopReason::kAtRest,
-                  "Zeno tail: the remaining flights after impact " + std::to_string(k) +
-                      " last less than time_resolution_s = " + Num(options.time_resolution_s) +
-                      " s in total",
-                  0.5 * m * Val(v) * Val(v));
+    const double e = v0v / vv_;
+    last_ratio_ = Val(v_next) / vv_;
+    t_ = t_next;
+    v_ = v_next;
+    if (e < 1.0 && Val(flight_s) * e / (1.0 - e) < options_.time_resolution_s) {
+      Stop(StopReason::kAtRest,
+           "Zeno tail: the remaining flights after impact " + std::to_string(k_) +
+               " last less than time_resolution_s = " + FormatGeneral(options_.time_resolution_s) +
+               " s in total",
+           0.5 * m_ * Val(v_) * Val(v_));
+      return true;
     }
+    return false;
   }
-}
+
+  const Scene& scene_;
+  const ContactLaw& law_;
+  std::span<const double> params_;
+  const SimulatorOptions& options_;
+  SimulationSensitivities* sens_;
+  Setup setup_;
+  const double m_;
+  const FlightModel flight_;
+  const double g_;
+  const bool has_drag_;
+  const SimulationLimits& lim_;
+  Simulation sim_;
+  T v_{0.0};  // the next impact's speed and time
+  T t_{0.0};
+  std::optional<ContactMap> map_;
+  double last_ratio_ = 0.0;  // the latest arrival speed over the one before (0: none yet)
+  int k_ = 0;                // the next impact's index
+  double vv_ = 0.0;          // Val(v_) at its start
+};
 
 }  // namespace
 
 Simulation Simulate(const Scene& scene, const ContactLaw& law, std::span<const double> params,
                     const SimulatorOptions& options) {
-  return Run<double>(scene, law, params, options, nullptr);
+  return BounceRun<double>(scene, law, params, options, nullptr).Run();
 }
 
 Simulation SimulateWithSensitivities(const Scene& scene, const ContactLaw& law,
@@ -478,7 +543,7 @@ Simulation SimulateWithSensitivities(const Scene& scene, const ContactLaw& law,
   *out = SimulationSensitivities{};
   for (const ParameterSpec& spec : law.Parameters()) out->names.push_back(spec.name);
   out->names.push_back("v_first_m_s");
-  return Run<Jet>(scene, law, params, options, out);
+  return BounceRun<Jet>(scene, law, params, options, out).Run();
 }
 
 }  // namespace bouncecal

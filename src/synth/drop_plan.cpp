@@ -5,6 +5,7 @@
 #include <string>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/synth/synth.hpp"
 #include "random.hpp"
 
@@ -16,13 +17,6 @@ using synth_random::Stream;
 
 // The plan's random stream (apart from the renderer's noise, hum, ... streams of synth.cpp).
 constexpr std::uint64_t kDropPlanPurpose = 6;
-
-std::string Fmt(double v) {
-  std::ostringstream o;
-  o.precision(10);
-  o << v;
-  return o.str();
-}
 
 bool Finite(double v) { return std::isfinite(v); }
 
@@ -37,16 +31,17 @@ bool DropPlan::IsValid(std::string* error) const {
     return fail("drops = " + std::to_string(drops) + " (expected 1 to " +
                 std::to_string(kMaxDrops) + ")");
   if (!(first_impact_s >= 0.0 && Finite(first_impact_s)))
-    return fail("first_impact_s = " + Fmt(first_impact_s) + " (expected >= 0)");
+    return fail("first_impact_s = " + FormatGeneral(first_impact_s, 10) + " (expected >= 0)");
   if (!(gap_min_s >= 0.0 && Finite(gap_min_s)))
-    return fail("gap_min_s = " + Fmt(gap_min_s) + " (expected >= 0)");
+    return fail("gap_min_s = " + FormatGeneral(gap_min_s, 10) + " (expected >= 0)");
   if (!(gap_max_s >= gap_min_s && Finite(gap_max_s)))
-    return fail("gap_max_s = " + Fmt(gap_max_s) + " (expected >= gap_min_s = " + Fmt(gap_min_s) +
-                ")");
+    return fail("gap_max_s = " + FormatGeneral(gap_max_s, 10) +
+                " (expected >= gap_min_s = " + FormatGeneral(gap_min_s, 10) + ")");
   if (!(height_spread >= 0.0 && height_spread < 1.0))
-    return fail("height_spread = " + Fmt(height_spread) + " (expected 0 <= spread < 1)");
+    return fail("height_spread = " + FormatGeneral(height_spread, 10) +
+                " (expected 0 <= spread < 1)");
   if (!(e_spread >= 0.0 && e_spread < 0.5))
-    return fail("e_spread = " + Fmt(e_spread) + " (expected 0 <= spread < 0.5)");
+    return fail("e_spread = " + FormatGeneral(e_spread, 10) + " (expected 0 <= spread < 0.5)");
   return true;
 }
 

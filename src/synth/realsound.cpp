@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
 #include "bouncecal/physics/scene.hpp"
 #include "fractional_delay.hpp"
 #include "random.hpp"
@@ -24,13 +25,6 @@ constexpr double kMaxDuration_s = 2400.0;
 // Output peak ceiling: the whole file is scaled down when the mix would pass it (16-bit files
 // saturate at full scale).
 constexpr double kPeakCeiling = 0.99;
-
-std::string Fmt(double v) {
-  std::ostringstream o;
-  o.precision(8);
-  o << v;
-  return o.str();
-}
 
 const char* CutChoiceName(CutChoice c) { return c == CutChoice::kPerImpact ? "impact" : "drop"; }
 
@@ -78,10 +72,11 @@ double ApplyClip(const RealSoundSpec& spec, double rate, std::vector<double>* x,
       rate));
   const std::int64_t b = std::min<std::int64_t>(a + n, static_cast<std::int64_t>(x->size()));
   if (a < 0 || b - a < 1)
-    throw Error(ErrorCode::kBadParameter, "realsound: clip [" + Fmt(*spec.clip_start_s) + " s, +" +
-                                              Fmt(spec.clip_length_s.value_or(0.0)) +
-                                              " s] lies outside the render (" +
-                                              Fmt(static_cast<double>(x->size()) / rate) + " s)");
+    throw Error(ErrorCode::kBadParameter,
+                "realsound: clip [" + FormatGeneral(*spec.clip_start_s, 8) + " s, +" +
+                    FormatGeneral(spec.clip_length_s.value_or(0.0), 8) +
+                    " s] lies outside the render (" +
+                    FormatGeneral(static_cast<double>(x->size()) / rate, 8) + " s)");
   *x = std::vector<double>(x->begin() + a, x->begin() + b);
   const double offset = static_cast<double>(a) / rate, end = static_cast<double>(b - a) / rate;
   RealSoundResult kept;
@@ -126,16 +121,17 @@ bool RealSoundSpec::IsValid(std::string* error) const {
     return fail(e);
   if (cut < -1) return fail("cut = " + std::to_string(cut) + " (expected >= -1)");
   if (!(amplitude_exponent >= 0.0 && amplitude_exponent <= 4.0))
-    return fail("amplitude_exponent = " + Fmt(amplitude_exponent) + " (expected 0..4)");
+    return fail("amplitude_exponent = " + FormatGeneral(amplitude_exponent, 8) +
+                " (expected 0..4)");
   if (!(noise_gain_db >= -120.0 && noise_gain_db <= 60.0))
-    return fail("noise_gain_db = " + Fmt(noise_gain_db) + " (expected -120..60 dB)");
+    return fail("noise_gain_db = " + FormatGeneral(noise_gain_db, 8) + " (expected -120..60 dB)");
   if (!(tail_s >= 0.0 && tail_s <= 60.0))
-    return fail("tail_s = " + Fmt(tail_s) + " (expected 0..60 s)");
+    return fail("tail_s = " + FormatGeneral(tail_s, 8) + " (expected 0..60 s)");
   if (clip_length_s && !clip_start_s) return fail("clip_length_s without clip_start_s");
   if (clip_start_s && !(*clip_start_s >= 0.0 && std::isfinite(*clip_start_s)))
-    return fail("clip_start_s = " + Fmt(*clip_start_s) + " (expected >= 0)");
+    return fail("clip_start_s = " + FormatGeneral(*clip_start_s, 8) + " (expected >= 0)");
   if (clip_length_s && !(*clip_length_s > 0.0 && std::isfinite(*clip_length_s)))
-    return fail("clip_length_s = " + Fmt(*clip_length_s) + " (expected > 0)");
+    return fail("clip_length_s = " + FormatGeneral(*clip_length_s, 8) + " (expected > 0)");
   return true;
 }
 
@@ -176,8 +172,9 @@ RealSoundResult RenderRealSound(const SoundSource& src, const RealSoundSpec& spe
   for (const auto& d : r.truth) last = std::max(last, d.back().time_s);
   const double duration = last + spec.tail_s;
   if (duration > kMaxDuration_s)
-    throw Error(ErrorCode::kBadParameter, "realsound: the schedule lasts " + Fmt(duration) +
-                                              " s (at most " + Fmt(kMaxDuration_s) + " s)");
+    throw Error(ErrorCode::kBadParameter, "realsound: the schedule lasts " +
+                                              FormatGeneral(duration, 8) + " s (at most " +
+                                              FormatGeneral(kMaxDuration_s, 8) + " s)");
   r.cut_of_impact = ChooseCuts(spec, src, r.truth);
   for (std::size_t d = 0; d < r.truth.size(); ++d) {
     r.gain_of_impact.emplace_back();

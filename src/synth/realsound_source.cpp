@@ -10,6 +10,8 @@
 
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/format.hpp"
+#include "bouncecal/core/stats.hpp"
 #include "bouncecal/synth/realsound.hpp"
 #include "fractional_delay.hpp"
 
@@ -36,13 +38,6 @@ constexpr double kMinAlignCorrelation = 0.8;
 constexpr double kFullScale = 0.99;
 // Gravity for the speeds read from the marked intervals (standard gravity).
 constexpr double kG_m_s2 = 9.81;
-
-std::string Fmt(double v) {
-  std::ostringstream o;
-  o.precision(6);
-  o << v;
-  return o.str();
-}
 
 // RMS of x over [i, i + w) from the running sum of squares (0 outside).
 struct Envelope {
@@ -84,12 +79,6 @@ double DecayEnd(const Envelope& env, double t_s, double limit_s, double floor_rm
   for (std::int64_t i = peak; i < lim; i += step)
     if (env.At(i) <= level) return static_cast<double>(i) / rate;
   return limit_s;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
 }
 
 // Speed of the impact at marks[k] from the marked intervals (vacuum flights: v = g dt / 2).
@@ -155,7 +144,7 @@ void EstimateSchedule(SoundSource* s) {
   for (std::size_t k = 2; k < m.size(); ++k)
     if (m[k].confidence == 'H' && m[k - 1].confidence == 'H' && m[k - 2].confidence == 'H')
       ratios.push_back((m[k].time_s - m[k - 1].time_s) / (m[k - 1].time_s - m[k - 2].time_s));
-  s->e_estimate = ratios.empty() ? 0.9 : std::clamp(Median(ratios), 0.05, 0.995);
+  s->e_estimate = ratios.empty() ? 0.9 : std::clamp(UpperMedian(ratios), 0.05, 0.995);
   const double v_out = kG_m_s2 * (m[1].time_s - m[0].time_s) / 2.0;
   const double v_in = v_out / s->e_estimate;
   s->height_estimate_m = v_in * v_in / (2.0 * kG_m_s2);
@@ -282,7 +271,8 @@ bool SoundSourceOptions::IsValid(std::string* error) const {
   if (!(fade_in_s > 0.0 && max_lag_s > 0.0 && fade_out_s > 0.0 && attack_s > 0.0))
     return fail("fade_in_s, fade_out_s, attack_s and max_lag_s must be > 0");
   if (!(pre_s > fade_in_s + max_lag_s && pre_s < 0.05))
-    return fail("pre_s = " + Fmt(pre_s) + " (expected fade_in_s + max_lag_s < pre_s < 0.05 s)");
+    return fail("pre_s = " + FormatGeneral(pre_s) +
+                " (expected fade_in_s + max_lag_s < pre_s < 0.05 s)");
   if (channel < -1) return fail("channel = " + std::to_string(channel) + " (expected >= -1)");
   return true;
 }
@@ -353,7 +343,7 @@ SoundSource LoadSoundSource(const std::string& wav_path, const SoundSourceOption
                 wav_path +
                     ": less than 20 ms before the first marked impact: no quiet to measure "
                     "the room's noise in");
-  s.noise_floor_rms = Median(pre);
+  s.noise_floor_rms = pre.empty() ? 0.0 : UpperMedian(pre);
   s.noise = RoomNoise::FromSegments(QuietStretches(x, env, s), rate);
   for (const CutPlan& p : PlanCuts(x, env, s, o)) {
     RealSoundCut c;

@@ -55,10 +55,10 @@ struct TrackOptions {
   // of the three members (3 sigma of log r from their sigma_s).
   double max_ratio = 1.0;
   // The trend of log e along a sequence (a Kalman filter, local level model): each bounce's log e
-  // scatters about it by scatter_sigma (real balls: sigma_e 0.005-0.03, README "Calibration on
-  // real recordings") and the trend itself drifts by drift_sigma per bounce (e changes with the
-  // impact speed: the steepest real case, the superball's 0.835 -> 0.94 in 30 bounces, drifts
-  // 0.004; 2.5 times that).
+  // scatters about it by scatter_sigma (real balls: sigma_e 0.005-0.03, docs/benchmarks.md
+  // "Calibration on real recordings") and the trend itself drifts by drift_sigma per bounce (e
+  // changes with the impact speed: the steepest real case, the superball's 0.835 -> 0.94 in 30
+  // bounces, drifts 0.004; 2.5 times that).
   double scatter_sigma = 0.02;
   double drift_sigma = 0.01;
   double max_z = 4.0;  // a regular step lies within this many spreads of the prediction

@@ -10,7 +10,7 @@
 //   AtomicFile out("x.wav", {.force = true});   // for writers that need a descriptor or path
 //   sf_open_fd(out.fd(), ...); ...; out.Commit();   // not committed: the temporary file is removed
 //
-// Conventions (documented in README.md):
+// Conventions (documented in docs/reliability.md, "Writes"):
 // - A symbolic link as the target is followed: the file it points to is replaced and the link
 //   stays a link (a dangling link is written through to the path it names).
 // - Replacing a file keeps its permission bits (a 0600 file stays 0600); a new file gets

@@ -14,7 +14,7 @@
 
 namespace bouncecal {
 
-// Process exit codes. Stable: scripts test them. Documented in README.md.
+// Process exit codes. Stable: scripts test them. Documented in docs/cli.md.
 enum class ErrorCode : int {
   kOk = 0,
   kInternal = 1,      // a bug: please report

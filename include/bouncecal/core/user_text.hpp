@@ -36,10 +36,6 @@ std::string DumpJson(const nlohmann::json& j, int indent = -1);
 inline constexpr std::size_t kEchoMaxChars = 80;
 std::string Abbreviate(std::string_view s, std::size_t max_chars = kEchoMaxChars);
 
-// The shortest "%g" text of `v` that reads back (strtod) to the same double ("0.2", not
-// "0.20000000000000001"); non-finite values as "%.17g" prints them ("inf", "nan").
-std::string ShortestNumber(double v);
-
 // A library name (an Options field, "SceneOverrides::height_m") and what a front end calls it
 // (a flag "--height", a keyword "height").
 struct NameInFrontEnd {

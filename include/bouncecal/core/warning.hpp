@@ -2,7 +2,7 @@
 //
 // A result is either trustworthy or flagged. Every stage that can produce a number that looks
 // precise but is not (a phantom impact, a drop height that cannot be right, a fit at a bound)
-// adds a Warning with a stable machine-readable `code` (snake_case; listed in README.md), a
+// adds a Warning with a stable machine-readable `code` (snake_case; listed in docs/cli.md), a
 // one-line human `message` naming the values involved, the impact (or bounce) it concerns, and
 // a `hint`: the next step, naming the flag, scene value or law to try (command-line names; the
 // scene key beside a flag where a scene file can say it too).

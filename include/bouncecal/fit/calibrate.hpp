@@ -190,7 +190,7 @@ struct Calibration {
   std::string reason;                       // one line: why this outcome
   std::string hint;                         // one line: what to try next (flags, laws, scene)
   std::string message;                      // notes (start values, starts, ...)
-  std::vector<Warning> warnings;            // coded diagnostics (README lists the codes)
+  std::vector<Warning> warnings;            // coded diagnostics (docs/cli.md lists the codes)
   std::vector<FittedParameter> parameters;  // every law parameter, in the law's order
   std::vector<RecordingFit> recordings;
   std::vector<EOfVPoint> e_of_v;            // over the measured speed range

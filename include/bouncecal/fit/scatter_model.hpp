@@ -166,7 +166,4 @@ class ScatterProfile {
   Eigen::VectorXd rf_;      // F^-1 r
 };
 
-// Two-sided normal quantile z with P(|Z| > z) = alpha (alpha in (0, 1)).
-double NormalQuantileTwoSided(double alpha);
-
 }  // namespace bouncecal

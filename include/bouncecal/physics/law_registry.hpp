@@ -17,6 +17,17 @@
 
 namespace bouncecal {
 
+// How `bouncecal export` (export/mapping.hpp) carries a law into a DEM simulator's native laws.
+enum class ExportMapping {
+  kLinearDashpot,      // k, c: exact where the simulator ends the contact by the law's end rule,
+                       // else k, c re-solved for the same e and contact time
+  kConstantLinear,     // constant e and contact time: a linear spring-dashpot with the same ones
+  kHertzTsuji,         // k, e: the simulator's Tsuji-damped Hertz law
+  kHertzViscoelastic,  // k, A: native where the simulator has d^1/2 damping, else the closest
+                       // constant-e Hertz law
+  kClosestHertz,       // no native counterpart: the constant-e Hertz law closest to its e(v)
+};
+
 // One row of the registry table: a law's identity and capabilities.
 struct LawInfo {
   std::string name;     // registry name, as typed in scene files and on the command line
@@ -29,6 +40,10 @@ struct LawInfo {
   // Closed forms the law provides: "restitution", "contact_time", "solve_contact",
   // "damping_for_restitution", "restitution_gradient".
   std::vector<std::string> closed_forms;
+  // Its export mapping, and for kConstantLinear why no native law carries it ("{target}" stands
+  // for the simulator's name).
+  ExportMapping export_mapping = ExportMapping::kClosestHertz;
+  std::string export_note;
 
   bool HasClosedForm(const std::string& form) const;
 };

@@ -79,6 +79,8 @@ bool LiveOptions::IsValid(std::string* error) const {
     return fail("forget_after_s " + Num("%g", forget_after_s) + ": must be in [0, 60] s");
   if (!(revise_sigmas > 0.0 && std::isfinite(revise_sigmas)))
     return fail("revise_sigmas " + Num("%g", revise_sigmas) + ": must be > 0");
+  if (!(revise_floor_samples >= 0.0 && std::isfinite(revise_floor_samples)))
+    return fail("revise_floor_samples " + Num("%g", revise_floor_samples) + ": must be >= 0");
   return true;
 }
 
@@ -244,7 +246,8 @@ void LiveDetector::Update(std::vector<Sequence> found, bool final, LiveUpdate* u
       const Impact &a0 = tr->reported[k - 1], &a1 = tr->reported[k];
       const Impact &b0 = settled[k - 1], &b1 = settled[k];
       const double moved = std::fabs((a1.time_s - a0.time_s) - (b1.time_s - b0.time_s));
-      if (moved > options_.revise_sigmas * std::hypot(std::max(a0.sigma_s, b0.sigma_s),
+      if (moved > options_.revise_floor_samples / rate_hz_ &&
+          moved > options_.revise_sigmas * std::hypot(std::max(a0.sigma_s, b0.sigma_s),
                                                       std::max(a1.sigma_s, b1.sigma_s))) {
         same = false;
         reason = "intervals moved";

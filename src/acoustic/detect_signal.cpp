@@ -184,9 +184,9 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
 // The tail: up to max_missed + 1 looks ahead at the trend's predictions (each from the match of
 // the look before when it is better than noise's), as long as the interval stays resolvable and
 // inside [.., limit_s). The longest run of looks that noise alone explains with probability below
-// kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, the
-// others as unheard impacts (missed_after). It stops where no run is significant: the noise won
-// or the ball stopped. Returns whether the sequence grew.
+// kGuidedFalseAlarm joins the sequence: its matches with p <= kGuidedMemberP as members, up to the
+// first look that found none (an unheard impact ends the tail). It stops where no run is
+// significant: the noise won or the ball stopped. Returns whether the sequence grew.
 bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double limit_s,
                 const TrackOptions& to, Sequence* q) {
   bool extended = false;
@@ -219,24 +219,21 @@ bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double l
         best_p = p, best_n = n;
     }
     if (best_n == 0 || best_p > kGuidedFalseAlarm) break;
-    bool unheard = false, grew = false;
+    // Members up to the first unheard impact only: past a gap the flight the looks were made
+    // from spans two bounces, and the next prediction locks onto every other impact (a 10 mm
+    // steel ball's tail: four double flights taken for bounces, e ~ e^2).
+    bool grew = false;
     for (std::size_t n = 0; n < best_n; ++n) {
-      if (!looks[n].any || looks[n].p > kGuidedMemberP) {
-        unheard = true;
-        continue;
-      }
+      if (!looks[n].any || looks[n].p > kGuidedMemberP) break;
       // Right after a member, the flight must not be longer than the one before beyond the
       // timing noise (e <= 1, TrackOptions::max_ratio): a match past it is not the next bounce.
       const Impact& f = looks[n].match;
       const std::size_t m = q->impacts.size();
       const double before = q->impacts[m - 1].time_s - q->impacts[m - 2].time_s;
-      if (!unheard &&
-          (f.time_s - q->impacts[m - 1].time_s) / before >
-              to.max_ratio + 3.0 * std::hypot(f.sigma_s, q->impacts[m - 1].sigma_s) / before)
+      if ((f.time_s - q->impacts[m - 1].time_s) / before >
+          to.max_ratio + 3.0 * std::hypot(f.sigma_s, q->impacts[m - 1].sigma_s) / before)
         break;
-      if (unheard) q->missed_after.push_back(static_cast<int>(m) - 1);
       q->impacts.push_back(f);
-      unheard = false;
       grew = true;
     }
     if (!grew) break;

@@ -17,7 +17,7 @@
 //   revised  the tracker may still change a sequence as later impacts arrive (a member
 //            removed, a missed impact found, the sequence dropped: after forget_after_s of
 //            runs that found other sequences but not this one); an interval between final
-//            members that moves by more than revise_sigmas of its sigma (and a tenth of a
+//            members that moves by more than revise_sigmas of its sigma (and a quarter of a
 //            sample) counts too (times
 //            carry the sequence's constant offset, timing.hpp, which cancels in intervals). The
 //            sequence's final members are then reported again, whole;
@@ -85,9 +85,9 @@ struct LiveOptions {
   double revise_sigmas = 1.0;
   // Re-timed in a later window (another stretch of audio behind the template), an impact moves
   // by a fraction of a sample that sigma, the error independent from impact to impact, leaves
-  // out (timing_test: exact copies timed to 0.02 samples): below 0.1 sample is no revision (the
-  // bundled recording's intervals, sigma 0.2-0.4 us, were revised 6 times in its first 6 s).
-  double revise_floor_samples = 0.1;
+  // out: measured 0.1 sample (2.2 us, 5 sigma) on the bundled recording when its window grew;
+  // exact copies are timed to 0.02 samples (timing_test). A quarter sample is no revision.
+  double revise_floor_samples = 0.25;
   // A sequence the runs stop finding (while they find others) is dropped once this much audio
   // went by without it: a detection near the window's end can lose a weak sequence for a few
   // runs and find it again (the synthetic rubber ball's, for up to 0.5 s).

@@ -97,8 +97,8 @@ export function processStats(pid) {
 
 // The offset d that puts most live times within 1 ms of a batch time (live = batch + d), and
 // the share of the batch's intervals the live ones reproduce (both ends matched, the length
-// within 3 combined sigmas + 1 us).
-export function compareIntervals(live, batch) {
+// within 3 combined sigmas + floor_s, default 1 us).
+export function compareIntervals(live, batch, floor_s = 1e-6) {
   let best = 0, bestCount = -1;
   for (const l of live) {
     for (const b of batch) {
@@ -116,7 +116,7 @@ export function compareIntervals(live, batch) {
     if (Math.abs(live[j + 1].time_s - best - batch[k + 1].time_s) >= 1e-3) continue;
     const a = live[j + 1].time_s - live[j].time_s, b = batch[k + 1].time_s - batch[k].time_s;
     const s = Math.hypot(batch[k].time_sigma_s, batch[k + 1].time_sigma_s);
-    if (Math.abs(a - b) <= 3 * s + 1e-6) good++;
+    if (Math.abs(a - b) <= 3 * s + floor_s) good++;
   }
   return { offset_s: best, reproduced: batch.length > 1 ? good / (batch.length - 1) : 0 };
 }

@@ -86,7 +86,9 @@ async function recordTest(server, dir, attempt) {
     const bySeq = new Map();
     for (const i of state.live) bySeq.set(i.sequence, [...(bySeq.get(i.sequence) || []), i]);
     const live = [...bySeq.values()].sort((a, b) => b.length - a.length)[0].sort((a, b) => a.index - b.index);
-    const cmp = compareIntervals(live, main);
+    // Agreement within 3 sigmas and a quarter sample: a window re-times an impact by a fraction of
+    // a sample that sigma leaves out (LiveOptions::revise_floor_samples), plus the take's rounding.
+    const cmp = compareIntervals(live, main, 1e-6 + 0.25 / detect.sample_rate_hz);
     console.log(`record: ${live.length} live impacts, ${main.length} by detect, offset ${cmp.offset_s.toFixed(4)} s, ` +
       `${(100 * cmp.reproduced).toFixed(1)} % of the intervals reproduced; the take's analysis: ` +
       `${state.analysis.bounces.length} impacts; latency median ` +

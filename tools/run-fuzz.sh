@@ -20,7 +20,7 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
     -DBOUNCECAL_PYTHON=OFF >/dev/null
 fi
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene fuzz_impacts fuzz_params fuzz_expression fuzz_audio)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_scene fuzz_impacts fuzz_params fuzz_expression fuzz_audio fuzz_serve)
 cmake --build "$build" -j "$(nproc)" --target "${targets[@]}"
 
 seed() {  # target corpus-dir: the project's own valid inputs
@@ -43,6 +43,16 @@ seed() {  # target corpus-dir: the project's own valid inputs
       [ -x "$root/build/bouncecal" ] && "$root/build/bouncecal" synth --preset phone-16k \
         --duration 2 --seed 1 --force -o "$dir/short.wav" >/dev/null 2>&1 || true
       rm -f "$dir"/*.truth.json ;;
+    fuzz_serve)
+      # The selector byte (tests/fuzz/fuzz_serve.cpp), then a query, a multipart body, live
+      # messages (0xFF 0xFE between them, 'b' for binary), a request through the router.
+      printf '\000/api/analyze?height=0.2&diameter=0.01&material=steel&set=k%%3D1e9&law=walton-braun' >"$dir/query"
+      printf '\001multipart/form-data; boundary=xyz\n--xyz\r\nContent-Disposition: form-data; name="f"; filename="a.wav"\r\n\r\nRIFF\r\n--xyz--\r\n' >"$dir/multipart"
+      printf '\002{"rate": 48000}' >"$dir/start"
+      printf '\003{"stop": true}' >"$dir/stop"
+      printf '\005{"rate": 8000}\377\376b\000\000\200\077\000\000\200\277\377\376{"stop": true}' >"$dir/live"
+      printf '\006GET /api/sessions\n\n' >"$dir/sessions"
+      printf '\006POST /api/export?to=lammps\napplication/json\n{"schema": "bouncecal.params/2"}' >"$dir/export" ;;
   esac
 }
 

@@ -66,7 +66,7 @@ run_asan() {  # [test programs...]: none = all
     timed asan-tests ctest --test-dir "$asan_dir" --output-on-failure -j "$jobs" \
       -LE "$exclude"
   else
-    local fuzz=(fuzz_scene fuzz_impacts fuzz_params fuzz_expression fuzz_audio)
+    local fuzz=(fuzz_scene fuzz_impacts fuzz_params fuzz_expression fuzz_audio fuzz_serve)
     timed asan-build cmake --build "$asan_dir" -j "$jobs" \
       --target bouncecal "${targets[@]}" "${fuzz[@]}"
     # gtest_discover_tests lists a program that was not built as one failing test

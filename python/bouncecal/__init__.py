@@ -11,6 +11,16 @@ dicts and lists (the same keys and nesting: `json.loads` of the CLI's output com
     s = bouncecal.simulate(law="walton-braun", set={"gamma": 0.5}, height=0.2)
     bouncecal.columns(a["bounces"])["e"]          # a NumPy array per key
 
+Audio in memory (sounddevice, a notebook, a DAQ) is a NumPy array with its rate, and a live
+stream is a Listener (the same streaming stages as `bouncecal serve` and `bouncecal listen`):
+
+    a = bouncecal.analyze(samples, rate=48000, height=0.2)      # 1-D mono or [channel, frame]
+    live = bouncecal.Listener(48000, height=0.2)
+    for block in blocks:                                        # e.g. sounddevice's callback
+        for m in live.feed(block):                              # impacts as they become final
+            if m["type"] == "impact": print(m["impact"]["time_s"])
+    analysis = live.finish()                                    # the whole take's analysis
+
 A scene is a TOML file's path or a dict of its keys, dotted ({"ball.diameter_m": 0.01,
 "drop.height_m": 0.2, "law.parameters.A": 5.16e-7}) or nested ({"ball": {"diameter_m": 0.01}}).
 Errors raise bouncecal.Error subclasses carrying the CLI's message, code name and exit code.
@@ -200,18 +210,41 @@ def _listed(result, single):
     return [result]
 
 
+def _is_array(x):
+    """A NumPy array (or anything exposing the array interface), not a path or list of paths."""
+    return hasattr(x, "__array_interface__") or hasattr(x, "__array__")
+
+
+def _samples(x):
+    import numpy as np
+
+    return np.ascontiguousarray(np.asarray(x, dtype=np.float32))
+
+
+def _array_call(fn, files, rate, name, opts):
+    if rate is None:
+        raise UsageError("audio given as an array needs its rate: rate=48000")
+    if name is not None:
+        opts["name"] = str(name)
+    return fn(_samples(files), float(rate), opts)
+
+
 def detect(files=None, *, channel=None, start=None, end=None, sequence=None, min_snr_db=None,
-           impacts=None, hop_ms=None, no_refine=False):
+           impacts=None, hop_ms=None, no_refine=False, rate=None, name=None):
     """`bouncecal detect FILE... --json` (schema bouncecal.detect/2): the sequences, each with its
     impacts (time_sigma_s ...; listed once: d["sequences"][d["chosen_sequences"][0]]["impacts"]
     are the chosen sequence's), removed candidates, channel scores, warnings.
     files: one path (-> one dict) or a list (-> a list; a failed recording is an entry
     {"file", "error"} and SomeFailedError is raised with .result = the list).
     channel: "auto" (default), "mix" or an index; sequence: "main" (default), "all" or an index;
-    impacts: impact-time file(s) instead of detection."""
-    paths, single = _files(files)
+    impacts: impact-time file(s) instead of detection.
+    files may also be a NumPy array (1-D mono or 2-D [channel, frame], full scale 1) with
+    rate=HZ (and name=..., "array" by default): the result is that of a file of those samples."""
     opts = {}
     _detect_flags(opts, channel, start, end, sequence, min_snr_db, impacts)
+    if _is_array(files):
+        return _array_call(_core.detect_array, files, rate, name, opts)
+    paths, single = _files(files)
     _put(opts, "hop_ms", hop_ms, float)
     _put(opts, "no_refine", no_refine, bool)
     return _listed(_core.detect(paths, opts), single)
@@ -220,16 +253,19 @@ def detect(files=None, *, channel=None, start=None, end=None, sequence=None, min
 def analyze(files=None, *, scene=None, height=None, height_sigma=None, impact_speed=None,
             diameter=None, density=None, mass=None, material=None, drag=None, buoyancy=False,
             contact_duration=False, g=None, contact_time=None, channel=None, start=None,
-            end=None, sequence=None, min_snr_db=None, impacts=None):
+            end=None, sequence=None, min_snr_db=None, impacts=None, rate=None, name=None):
     """`bouncecal analyze FILE... --json` (schema bouncecal.analysis/1): per-bounce speeds,
     restitution e and energy loss eta with sigmas, the summary, assumed values, warnings.
-    One path gives one dict (a list when sequence="all" finds several); a list gives a list."""
-    paths, single = _files(files)
+    One path gives one dict (a list when sequence="all" finds several); a list gives a list.
+    files may be a NumPy array with rate=HZ (as detect)."""
     opts = {}
     _detect_flags(opts, channel, start, end, sequence, min_snr_db, impacts)
     _scene_flags(opts, scene, height, height_sigma, impact_speed, diameter, density, mass,
                  material, drag, buoyancy, contact_duration, g)
     _put(opts, "contact_time", contact_time, float)
+    if _is_array(files):
+        return _array_call(_core.analyze_array, files, rate, name, opts)
+    paths, single = _files(files)
     return _listed(_core.analyze(paths, opts), single)
 
 
@@ -239,15 +275,15 @@ def calibrate(files=None, *, scene=None, height=None, height_sigma=None, impact_
               free=None, fix=None, derivatives=None, rtol=None, loss=None, loss_scale=None,
               max_iterations=None, starts=None, ignore_drop=False, no_scatter=False,
               channel=None, start=None, end=None, sequence=None, min_snr_db=None, impacts=None,
-              output=None, force=False, jobs=None, batch=False):
+              output=None, force=False, jobs=None, batch=False, rate=None, name=None):
     """`bouncecal calibrate FILE... --json`: the parameter file's object (bouncecal.params/2)
     with "assumed"; several files are one joint fit. law="all": the law comparison
     (bouncecal.law_comparison/2); batch=True: one bouncecal.calibration_row/1 per file (a list).
     output: also write the parameter file (force replaces it).
     An outcome other than "converged" raises FitOutcomeError (.exit_code 13/14/15, .result the
     calibration, the file still written); law="all" with no adequate law raises FitFailedError
-    (.result the comparison); batch with failures raises SomeFailedError (.result the rows)."""
-    paths, _ = _files(files)
+    (.result the comparison); batch with failures raises SomeFailedError (.result the rows).
+    files may be a NumPy array with rate=HZ (as detect; its provenance is the samples' SHA-256)."""
     opts = {}
     _detect_flags(opts, channel, start, end, sequence, min_snr_db, impacts)
     _scene_flags(opts, scene, height, height_sigma, impact_speed, diameter, density, mass,
@@ -257,9 +293,9 @@ def calibrate(files=None, *, scene=None, height=None, height_sigma=None, impact_
         opts["set"] = _law_sets(set)
     _put(opts, "expression", expression, str)
     _put(opts, "strategy", strategy, str)
-    for name, value in (("free", free), ("fix", fix)):
+    for key, value in (("free", free), ("fix", fix)):
         if value is not None:
-            opts[name] = [value] if isinstance(value, str) else [str(v) for v in value]
+            opts[key] = [value] if isinstance(value, str) else [str(v) for v in value]
     _put(opts, "derivatives", derivatives, str)
     _put(opts, "rtol", rtol, float)
     _put(opts, "loss", loss, str)
@@ -272,7 +308,62 @@ def calibrate(files=None, *, scene=None, height=None, height_sigma=None, impact_
     _put(opts, "force", force, bool)
     _put(opts, "jobs", jobs, int)
     _put(opts, "batch", batch, bool)
+    if _is_array(files):
+        return _array_call(_core.calibrate_array, files, rate, name, opts)
+    paths, _ = _files(files)
     return _core.calibrate(paths, opts)
+
+
+class Listener:
+    """A live stream, detected as it arrives (the streaming stages of `bouncecal serve` and
+    `bouncecal listen`, include/bouncecal/acoustic/live.hpp).
+
+    feed(samples) takes the next samples (1-D mono, or [channel, frame]: mixed) and returns the
+    messages (bouncecal.live/1 dicts) of what became final: {"type": "impact", "impact": {...},
+    "bounce": {...} or None}, {"type": "revised", ...}, {"type": "warning", ...}.
+    finish() ends the stream and returns the whole take's analysis (bouncecal.analysis/1, what
+    `analyze` gives for a file of the same samples); the last messages are then in
+    .last_messages, every final impact in .impacts.
+    The take is kept in memory (4 bytes a sample), or written to take=PATH (.flac or .wav) as
+    it arrives. Scene keywords as analyze's."""
+
+    def __init__(self, rate, *, scene=None, height=None, height_sigma=None, impact_speed=None,
+                 diameter=None, density=None, mass=None, material=None, drag=None,
+                 buoyancy=False, contact_duration=False, g=None, min_snr_db=None, take=None,
+                 force=False, name=None):
+        opts = {}
+        _scene_flags(opts, scene, height, height_sigma, impact_speed, diameter, density, mass,
+                     material, drag, buoyancy, contact_duration, g)
+        _put(opts, "min_snr_db", min_snr_db, float)
+        _put(opts, "take", None if take is None else _os.fspath(take), str)
+        _put(opts, "force", force, bool)
+        _put(opts, "name", name, str)
+        self._core = _core.Listener(float(rate), opts)
+
+    def feed(self, samples):
+        x = _samples(samples)
+        if x.ndim == 2:
+            x = _samples(x.mean(axis=0))
+        return self._core.feed(x)
+
+    def finish(self):
+        return self._core.finish()
+
+    @property
+    def impacts(self):
+        return self._core.impacts
+
+    @property
+    def last_messages(self):
+        return self._core.last_messages
+
+    @property
+    def rate(self):
+        return self._core.rate
+
+    @property
+    def frames(self):
+        return self._core.frames
 
 
 def read_audio(path):

@@ -5,9 +5,11 @@
 #include <string>
 #include <vector>
 
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <nlohmann/json.hpp>
 
+#include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/acoustic/drop_input.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/io/given_scene.hpp"
@@ -65,5 +67,14 @@ std::string KeywordText(const std::string& message);
 void BindTools(py::module_& m);
 // detect, analyze, calibrate, read_audio.
 void BindRecordings(py::module_& m);
+// detect_array, analyze_array, Listener.
+void BindLive(py::module_& m);
+
+// A NumPy array (1-D mono or 2-D [channel, frame], any float or integer dtype converted to
+// float32) with its rate as a recording named `name`, every sample checked as a file's are.
+// Throws Error(kUsage) for a bad shape or rate, Error(kBadSamples) for NaN/Inf or beyond
+// kMaxSampleMagnitude.
+Audio AudioFromArray(const py::array_t<float, py::array::c_style | py::array::forcecast>& samples,
+                     double rate_hz, const std::string& name);
 
 }  // namespace bouncecal::python

@@ -17,4 +17,5 @@ PYBIND11_MODULE(_core, m) {
   bouncecal::python::RegisterErrorTranslator();
   bouncecal::python::BindTools(m);
   bouncecal::python::BindRecordings(m);
+  bouncecal::python::BindLive(m);
 }

@@ -183,6 +183,9 @@ struct CalibrateRun {
   int jobs = 1;
   std::string output;
   bool force = false;
+  // An array's provenance (its samples' checksum): files have MakeProvenance(files).
+  std::optional<Provenance> provenance;
+  Provenance Origin() const { return provenance ? *provenance : MakeProvenance(files); }
 };
 
 std::string Precision(double v, int digits) {
@@ -300,7 +303,7 @@ nlohmann::json CalibrateBatch(const CalibrateRun& r,
 // `calibrate --law all --json` (bouncecal.law_comparison/2).
 nlohmann::json CalibrateAll(const CalibrateRun& r, const std::vector<CalibrationInput>& inputs) {
   const std::vector<LawComparisonRow> rows = CompareLaws(inputs, r.gs.scene, r.options, r.jobs);
-  const Provenance prov = MakeProvenance(r.files);
+  const Provenance prov = r.Origin();
   const nlohmann::json options_json = OptionsJson(r.options);
   nlohmann::json doc =
       LawComparisonJson(rows, prov, options_json, AssumedJson(AssumedValues(r.gs, true)));
@@ -331,7 +334,7 @@ nlohmann::json CalibrateOne(const CalibrateRun& r, const std::vector<Calibration
                          "held at the law's default, not fitted"});
     }
   }
-  nlohmann::json doc = CalibrationJson(c, MakeProvenance(r.files), OptionsJson(r.options));
+  nlohmann::json doc = CalibrationJson(c, r.Origin(), OptionsJson(r.options));
   doc["assumed"] = AssumedJson(assumed);
   // The parameter file records every outcome; the exception tells scripts.
   if (!r.output.empty()) WriteParamFile(r.output, doc, {.force = r.force, .inputs = r.files});
@@ -374,9 +377,42 @@ py::object CalibrateBinding(const std::vector<std::string>& files, const py::dic
   return ToPython(result);
 }
 
+// `calibrate --json` on an array (one recording; batch does not apply).
+py::object CalibrateArrayBinding(
+    const py::array_t<float, py::array::c_style | py::array::forcecast>& samples, double rate_hz,
+    const py::dict& options) {
+  Options o(options);
+  const std::string name = o.TakeString("name").value_or("array");
+  CalibrateRun r = TakeCalibrateRun({}, o);
+  if (r.batch) throw Error(ErrorCode::kUsage, "calibrate: batch=True needs files");
+  if (!r.compare_all) CreateLaw(r.gs.scene.law, r.gs.scene);  // unknown law: before any work
+  const Audio audio = AudioFromArray(samples, rate_hz, name);
+  py::gil_scoped_release release;
+  if (!r.output.empty()) CheckOutputPath(r.output, {.force = r.force, .inputs = {}});
+  Provenance p;
+  std::string bytes;
+  for (const auto& c : audio.channels)
+    bytes.append(reinterpret_cast<const char*>(c.data()), c.size() * sizeof(float));
+  p.inputs.push_back({name, Sha256OfString(bytes)});
+  p.bouncecal_version = BouncecalVersion();
+  p.date_utc = NowIsoDateUtc();
+  r.provenance = p;
+  const LoadedRecording l = LoadRecording(name, &audio, "", r.detect);
+  std::vector<CalibrationInput> inputs;
+  for (int s : l.chosen) {
+    const std::string drop = l.chosen.size() > 1 ? name + "#" + std::to_string(s) : name;
+    inputs.push_back({drop, l.result.sequences.at(static_cast<std::size_t>(s))});
+  }
+  const nlohmann::json result = r.compare_all ? CalibrateAll(r, inputs) : CalibrateOne(r, inputs);
+  py::gil_scoped_acquire acquire;
+  return ToPython(result);
+}
+
 }  // namespace
 
 void BindRecordings(py::module_& m) {
+  m.def("calibrate_array", &CalibrateArrayBinding, py::arg("samples"), py::arg("rate"),
+        py::arg("options"));
   m.def("read_audio", &ReadAudioBinding, py::arg("path"));
   m.def("detect", &DetectBinding, py::arg("files"), py::arg("options"));
   m.def("analyze", &AnalyzeBinding, py::arg("files"), py::arg("options"));

@@ -140,33 +140,6 @@ int SubtypeFromName(const std::string& path, const std::string& name) {
                                       "' (expected PCM_16, PCM_24, PCM_32, FLOAT or VORBIS)");
 }
 
-// Largest sample magnitude accepted, in units of full scale (libsndfile reads integer formats
-// into [-1, 1] and float formats as stored, nominally [-1, 1]). 1e6 is 120 dB above full scale:
-// it admits float files written on the int16 scale (+-32768, a known quirk of some software)
-// with a margin of 30, and keeps the single-precision processing finite (Whiten sums x^2 over
-// 4096-sample blocks: 4096 * (1e6)^2 = 4e15, far below FLT_MAX = 3.4e38). A float file of
-// +-1e30 made every such sum overflow: "no bounce sequence" or an SNR of -nan (issue 14).
-constexpr double kMaxSampleMagnitude = 1e6;
-
-// The message for a sample that is NaN/Inf or beyond kMaxSampleMagnitude.
-std::string BadSampleMessage(const std::string& path, float v, std::size_t channel,
-                             std::int64_t frame, double rate_hz) {
-  char msg[256];
-  if (std::isfinite(v)) {
-    std::snprintf(msg, sizeof(msg),
-                  ": sample %g in channel %zu at frame %lld (%.6f s) is more than %g times "
-                  "full scale (a float file this loud is corrupt or mis-scaled: rescale it "
-                  "to +-1)",
-                  static_cast<double>(v), channel, static_cast<long long>(frame),
-                  static_cast<double>(frame) / rate_hz, kMaxSampleMagnitude);
-  } else {
-    std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %lld (%.6f s)",
-                  std::isnan(v) ? "NaN" : "infinite", channel, static_cast<long long>(frame),
-                  static_cast<double>(frame) / rate_hz);
-  }
-  return path + msg;
-}
-
 }  // namespace
 
 ClippingReport AnalyzeClipping(const std::vector<float>& x, int channel) {
@@ -790,6 +763,24 @@ void WriteAudio(const std::string& path, const std::vector<std::vector<float>>& 
     if (sf_close(raw) != 0) fail("closing the file failed");  // finishes headers/encoders
   }
   out.Commit();
+}
+
+std::string BadSampleMessage(const std::string& path, float v, std::size_t channel,
+                             std::int64_t frame, double rate_hz) {
+  char msg[256];
+  if (std::isfinite(v)) {
+    std::snprintf(msg, sizeof(msg),
+                  ": sample %g in channel %zu at frame %lld (%.6f s) is more than %g times "
+                  "full scale (a float file this loud is corrupt or mis-scaled: rescale it "
+                  "to +-1)",
+                  static_cast<double>(v), channel, static_cast<long long>(frame),
+                  static_cast<double>(frame) / rate_hz, kMaxSampleMagnitude);
+  } else {
+    std::snprintf(msg, sizeof(msg), ": %s sample in channel %zu at frame %lld (%.6f s)",
+                  std::isnan(v) ? "NaN" : "infinite", channel, static_cast<long long>(frame),
+                  static_cast<double>(frame) / rate_hz);
+  }
+  return path + msg;
 }
 
 }  // namespace bouncecal

@@ -16,5 +16,7 @@ void RegisterSimulate(CLI::App& app);
 void RegisterCalibrate(CLI::App& app);
 void RegisterExport(CLI::App& app);
 void RegisterReport(CLI::App& app);
+void RegisterServe(CLI::App& app);
+void RegisterListen(CLI::App& app);
 
 }  // namespace bouncecal::cli

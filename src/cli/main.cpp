@@ -63,7 +63,9 @@ int main(int argc, char** argv) {
                                                 {"simulate", bouncecal::cli::RegisterSimulate},
                                                 {"calibrate", bouncecal::cli::RegisterCalibrate},
                                                 {"export", bouncecal::cli::RegisterExport},
-                                                {"report", bouncecal::cli::RegisterReport}};
+                                                {"report", bouncecal::cli::RegisterReport},
+                                                {"serve", bouncecal::cli::RegisterServe},
+                                                {"listen", bouncecal::cli::RegisterListen}};
   const Subcommand* named = nullptr;
   for (const Subcommand& s : kSubcommands)
     if (argc > 1 && std::strcmp(argv[1], s.name) == 0) named = &s;

@@ -23,6 +23,7 @@
 // sample beyond 1e6 times full scale).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -57,6 +58,16 @@ struct AudioInfo {
 // Sample rates ReadAudio accepts (Hz); others are Error(kNotAudio, "unsupported sample rate").
 inline constexpr int kMinSampleRateHz = 8000;
 inline constexpr int kMaxSampleRateHz = 384000;
+// Largest sample magnitude accepted, in units of full scale (libsndfile reads integer formats
+// into [-1, 1] and float formats as stored, nominally [-1, 1]). 1e6 is 120 dB above full scale:
+// it admits float files written on the int16 scale (+-32768, a known quirk of some software)
+// with a margin of 30, and keeps the single-precision processing finite (Whiten sums x^2 over
+// 4096-sample blocks: 4096 * (1e6)^2 = 4e15, far below FLT_MAX = 3.4e38). A float file of
+// +-1e30 made every such sum overflow: "no bounce sequence" or an SNR of -nan (issue 14).
+inline constexpr double kMaxSampleMagnitude = 1e6;
+// "<source>: NaN sample in channel 0 at frame 12 (0.000250 s)" (or too loud: kMaxSampleMagnitude).
+std::string BadSampleMessage(const std::string& source, float v, std::size_t channel,
+                             std::int64_t frame, double rate_hz);
 // A clip is a run of at least this many consecutive samples at the channel's extreme value.
 inline constexpr std::int64_t kMinClipRun = 3;
 

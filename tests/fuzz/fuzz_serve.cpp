@@ -33,7 +33,7 @@ const std::string& Dir() {
   return dir;
 }
 
-void Query(std::string_view in) {
+void FuzzQuery(std::string_view in) {
   const Target t = ParseTarget(in);
   serve::Query q(t.query);
   SceneOverrides scene = TakeSceneQuery(q, true);
@@ -75,7 +75,7 @@ void Live(std::string_view in) {
 }
 
 // "METHOD TARGET\ncontent type\nbody"
-void Api(std::string_view in) {
+void FuzzApi(std::string_view in) {
   static Sessions sessions(Dir() + "/takes", 2);
   static const serve::Api api(&sessions, ApiOptions{});
   const std::size_t a = in.find(' '), b = in.find('\n'), c = in.find('\n', b + 1);
@@ -111,7 +111,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     switch (data[0] % 7) {
       case 0:
-        Query(in);
+        FuzzQuery(in);
         break;
       case 1:
         Multipart(in);
@@ -129,7 +129,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         Live(in);
         break;
       default:
-        Api(in);
+        FuzzApi(in);
         break;
     }
   } catch (const Error&) {

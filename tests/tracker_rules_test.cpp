@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "bouncecal/acoustic/sequence.hpp"
+#include "bouncecal/core/stats.hpp"
 
 namespace bouncecal {
 namespace {
@@ -501,7 +502,7 @@ double DocumentedScore(const ShortDrop& d) {
                d2 = d.c[3].time_s - d.c[2].time_s;
   score -= std::log(d0 * std::log(3.0 / 0.003)) + std::log(d1 * std::log(1.0 / 0.2));
   const double spread = std::sqrt(2.0 * 0.02 * 0.02 + 0.01 * 0.01), dof = 2.0;
-  score += std::lgamma(0.5 * (dof + 1.0)) - std::lgamma(0.5 * dof) - 0.5 * std::log(dof * M_PI) -
+  score += LogGamma(0.5 * (dof + 1.0)) - LogGamma(0.5 * dof) - 0.5 * std::log(dof * M_PI) -
            std::log(spread) - std::log(d2);
   const double r = d2 / d1;
   if (d.c[3].time_s + d2 * r <= d.duration_s) {

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "bouncecal/core/error.hpp"
+#include "bouncecal/core/stats.hpp"
 
 namespace bouncecal {
 namespace {
@@ -22,7 +23,7 @@ constexpr double kMinScale = 0.25;
 // log of the Student t density with `dof` degrees of freedom and scale `scale` at x.
 double LogStudentT(double x, double scale, double dof) {
   const double u = x / scale;
-  return std::lgamma(0.5 * (dof + 1.0)) - std::lgamma(0.5 * dof) - 0.5 * std::log(dof * M_PI) -
+  return LogGamma(0.5 * (dof + 1.0)) - LogGamma(0.5 * dof) - 0.5 * std::log(dof * M_PI) -
          std::log(scale) - 0.5 * (dof + 1.0) * std::log1p(u * u / dof);
 }
 

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <vector>
 
+#include "bouncecal/core/stats.hpp"
 #include "timing_parts.hpp"
 
 namespace bouncecal::timing_parts {
@@ -97,13 +98,13 @@ constexpr double kShiftBeta = 10.0;
 }  // namespace
 
 SelfMatch MeasureSelfMatch(const Neighbourhood& nb, const Template& t) {
-  static const double i0_beta = std::cyl_bessel_i(0.0, kShiftBeta);
+  static const double i0_beta = BesselI0(kShiftBeta);
   auto kernel = [](double u) {
     if (std::fabs(u) >= static_cast<double>(kShiftHalf)) return 0.0;
     const double r = u / static_cast<double>(kShiftHalf);
     const double sinc =
         std::fabs(u) < 1e-12 ? 1.0 : std::sin(std::numbers::pi * u) / (std::numbers::pi * u);
-    return sinc * std::cyl_bessel_i(0.0, kShiftBeta * std::sqrt(1.0 - r * r)) / i0_beta;
+    return sinc * BesselI0(kShiftBeta * std::sqrt(1.0 - r * r)) / i0_beta;
   };
   const long tl = static_cast<long>(t.h.size());
   // The peak position with nb delayed by `delay` samples; *share: 1 - ncc^2 there.

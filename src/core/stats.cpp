@@ -34,4 +34,24 @@ double NormalQuantileTwoSided(double alpha) {
   return 0.5 * (a + b);
 }
 
+double LogGamma(double x) {
+  int sign = 0;
+  return ::lgamma_r(x, &sign);
+}
+
+double BesselI0(double x) {
+  // libstdc++'s own split: its power series (A&S 9.6.10) where x^2 < 10, where it takes 1 for the
+  // prefactor exp(0 log(x/2) - lgamma(1)); Temme's method (no lgamma) beyond.
+  if (!(x * x < 10.0)) return std::cyl_bessel_i(0.0, x);
+  if (x == 0.0) return 1.0;
+  const double xx4 = 0.25 * x * x;
+  double sum = 1.0, term = 1.0;
+  for (unsigned i = 1; i < 200; ++i) {
+    term *= xx4 / (static_cast<double>(i) * static_cast<double>(i));
+    sum += term;
+    if (std::fabs(term / sum) < std::numeric_limits<double>::epsilon()) break;
+  }
+  return sum;
+}
+
 }  // namespace bouncecal

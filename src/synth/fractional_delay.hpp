@@ -10,6 +10,8 @@
 #include <numbers>
 #include <vector>
 
+#include "bouncecal/core/stats.hpp"
+
 namespace bouncecal::fractional_delay {
 
 inline constexpr int kHalfTaps = 32;
@@ -21,8 +23,8 @@ inline double Kernel(double u) {
   if (a >= kHalfTaps) return 0.0;
   const double sinc = a < 1e-12 ? 1.0 : std::sin(std::numbers::pi * u) / (std::numbers::pi * u);
   const double r = u / kHalfTaps;
-  static const double i0_beta = std::cyl_bessel_i(0.0, kKaiserBeta);
-  return sinc * std::cyl_bessel_i(0.0, kKaiserBeta * std::sqrt(1.0 - r * r)) / i0_beta;
+  static const double i0_beta = BesselI0(kKaiserBeta);
+  return sinc * BesselI0(kKaiserBeta * std::sqrt(1.0 - r * r)) / i0_beta;
 }
 
 // The 2 kHalfTaps + 1 weights w[d + kHalfTaps] = Kernel(d - f), d in [-kHalfTaps, kHalfTaps],

@@ -1,4 +1,5 @@
-// bouncecal/core/stats.hpp — robust location and spread of a sample, and normal quantiles.
+// bouncecal/core/stats.hpp — robust location and spread of a sample, normal quantiles, and two
+// special functions safe to call from several threads.
 //
 //   Median({3, 1, 2, 10})        // 2.5: the mean of the two middle values
 //   UpperMedian({3, 1, 2, 10})   // 3: the (n / 2)-th smallest, what std::nth_element selects
@@ -37,5 +38,12 @@ double LowerQuantile(std::vector<T>* v, double p) {
 
 // z with P(|Z| > z) = alpha for a standard normal Z (two-sided), alpha in (0, 1].
 double NormalQuantileTwoSided(double alpha);
+
+// Thread-safe special functions. std::lgamma writes the process-wide `signgam`, and
+// std::cyl_bessel_i's series branch calls it: a data race when detection runs on several threads.
+// log|Gamma(x)|, the value std::lgamma gives, without touching signgam.
+double LogGamma(double x);
+// The modified Bessel function I0(x), x >= 0, the value std::cyl_bessel_i(0, x) gives.
+double BesselI0(double x);
 
 }  // namespace bouncecal

@@ -39,18 +39,17 @@ struct Look {
   bool any = false;
   double p = 1.0;
 };
-Look LookAt(const OnsetResult& onsets, const std::vector<float>& x, const GuidedOptions& go,
-            double t_c, double dn, double ratio_spread) {
+Look LookAt(const OnsetResult& onsets, const MatchTemplate& tpl, const std::vector<float>& x,
+            const GuidedOptions& go, double t_c, double dn, double ratio_spread) {
   Look look;
   // At least two samples either side (the interpolated peak needs its neighbours).
   const double half = std::max(go.reach * ratio_spread * dn, 2.0 / onsets.rate_hz);
-  look.any = FindByTemplate(onsets, x, t_c, half, -1.0, &look.match, go.edge_penalty);
+  look.any = FindByTemplate(onsets, tpl, x, t_c, half, -1.0, &look.match, go.edge_penalty);
   if (!look.any) return look;
   // The noise's NCC measured in the middle of the flight before (what rings there, away from
   // both impacts).
-  const double spread = NccNoiseSpread(onsets, t_c - 2.0 * dn / 3.0, t_c - dn / 3.0, 256);
-  const double s =
-      std::max(spread, 1.0 / std::sqrt(static_cast<double>(onsets.template_wave.size())));
+  const double spread = NccNoiseSpread(onsets, tpl, t_c - 2.0 * dn / 3.0, t_c - dn / 3.0, 256);
+  const double s = std::max(spread, 1.0 / std::sqrt(static_cast<double>(tpl.wave.size())));
   // The match was ranked by NCC - edge_penalty u^2 (u: distance from the centre in half
   // windows); noise alone ranks as well at position u with probability Q((rank + pen u^2) / s).
   const double u_match = (look.match.time_s - t_c) / half;
@@ -127,8 +126,8 @@ RatioTrend TrendAt(const Sequence& seq, std::size_t end, const GuidedOptions& go
 // Gaps the tracker flagged: m unheard impacts (the m that makes the gap closest to d (r + ... +
 // r^(m+1)) with the ratio r of the flights before it), looked for at their places once the
 // ratio is scaled so that the m + 1 flights fill the gap exactly.
-void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const TrackOptions& to,
-              const GuidedOptions& go, Sequence* q) {
+void FillGaps(const OnsetResult& onsets, const MatchTemplate& tpl, const std::vector<float>& x,
+              const TrackOptions& to, const GuidedOptions& go, Sequence* q) {
   std::vector<int> still_missed;
   int inserted = 0;
   for (int k0 : q->missed_after) {
@@ -161,7 +160,7 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
     for (int j = 1; j <= m; ++j) {
       dn *= r;
       t += dn;
-      const Look look = LookAt(onsets, x, go, t, dn, TrendAt(*q, k + 1, go).spread);
+      const Look look = LookAt(onsets, tpl, x, go, t, dn, TrendAt(*q, k + 1, go).spread);
       if (look.any && look.p <= go.member_p) found.push_back(look.match);
     }
     q->impacts.insert(q->impacts.begin() + static_cast<std::ptrdiff_t>(k + 1), found.begin(),
@@ -186,8 +185,8 @@ void FillGaps(const OnsetResult& onsets, const std::vector<float>& x, const Trac
 // go.false_alarm joins the sequence: its matches with p <= go.member_p as members, up to the
 // first look that found none (an unheard impact ends the tail). It stops where no run is
 // significant: the noise won or the ball stopped. Returns whether the sequence grew.
-bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double limit_s,
-                const TrackOptions& to, const GuidedOptions& go, Sequence* q) {
+bool ExtendTail(const OnsetResult& onsets, const MatchTemplate& tpl, const std::vector<float>& x,
+                double limit_s, const TrackOptions& to, const GuidedOptions& go, Sequence* q) {
   bool extended = false;
   while (q->impacts.size() >= 3) {
     const RatioTrend trend = TrendAt(*q, q->impacts.size(), go);
@@ -200,7 +199,7 @@ bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double l
           std::clamp(std::exp(trend.log_r + trend.slope * j), to.min_ratio, to.max_ratio);
       const double dn = d * r;
       if (dn < to.min_interval_s || t + dn > limit_s) break;
-      looks.push_back(LookAt(onsets, x, go, t + dn, dn,
+      looks.push_back(LookAt(onsets, tpl, x, go, t + dn, dn,
                              spread * std::sqrt(1.0 + static_cast<double>(looks.size()))));
       const Look& l = looks.back();
       const double next = l.any && l.p <= go.member_p ? l.match.time_s : t + dn;
@@ -241,6 +240,16 @@ bool ExtendTail(const OnsetResult& onsets, const std::vector<float>& x, double l
   return extended;
 }
 
+// The template cut at the sequence's strongest member (highest SNR), or the recording's own when
+// that would leave the signal.
+MatchTemplate SequenceTemplate(const OnsetResult& onsets, const Sequence& q) {
+  const auto strongest =
+      std::max_element(q.impacts.begin(), q.impacts.end(),
+                       [](const Impact& a, const Impact& b) { return a.snr_db < b.snr_db; });
+  MatchTemplate t = TemplateAt(onsets, strongest->time_s);
+  return t.wave.empty() ? TemplateOf(onsets) : t;
+}
+
 }  // namespace
 
 void ExtendByTemplate(const OnsetResult& onsets, const std::vector<float>& x, double duration_s,
@@ -251,11 +260,16 @@ void ExtendByTemplate(const OnsetResult& onsets, const std::vector<float>& x, do
   if (onsets.template_wave.empty()) return;
   for (std::size_t s = 0; s < sequences->size(); ++s) {
     Sequence& q = (*sequences)[s];
-    FillGaps(onsets, x, to, go, &q);
+    // The sequence's own sound: the whitened waveform of its strongest member (as the onset
+    // detector's template is the recording's strongest onset). The impacts of one drop share an
+    // impact point and a ball; another drop's may differ (real impacts of one tennis ball or
+    // basketball: NCC 0.31-0.55 between two drops' templates, docs/physics.md §8.1).
+    const MatchTemplate tpl = SequenceTemplate(onsets, q);
+    FillGaps(onsets, tpl, x, to, go, &q);
     const double limit = s + 1 < sequences->size()
                              ? (*sequences)[s + 1].impacts.front().time_s - to.min_interval_s
                              : duration_s - 0.002;
-    if (!ExtendTail(onsets, x, limit, to, go, &q)) continue;
+    if (!ExtendTail(onsets, tpl, x, limit, to, go, &q)) continue;
     const double d = q.impacts.back().time_s - q.impacts[q.impacts.size() - 2].time_s;
     const double next_dt = d * std::exp(TrendAt(q, q.impacts.size(), go).log_r);
     const double next_t = q.impacts.back().time_s + next_dt;

@@ -4,13 +4,13 @@
 //
 //   ExtendByTemplate(onsets, x, duration_s, track_options, GuidedOptions{}, &sequences);
 //
-// Each look is the best template match (FindByTemplate, onsets.hpp) in a window around the
-// predicted time, with a p-value: the chance that noise alone ranks as well somewhere in that
-// window. A match joins when its own p-value is small, inside a run of looks whose combined
-// p-value (Fisher) noise alone rarely reaches. The tail stops at its first unheard impact (past
-// it the flight the looks were made from spans two bounces) or where no run is significant: the
-// noise won or the ball stopped. Each rule is pinned to a factor of 2 by
-// tests/guided_rules_test.cpp.
+// Each look is the best match (FindByTemplate, onsets.hpp) of the sequence's own template (the
+// whitened waveform of its strongest member) in a window around the predicted time, with a p-value:
+// the chance that noise alone ranks as well somewhere in that window. A match joins when its own
+// p-value is small, inside a run of looks whose combined p-value (Fisher) noise alone rarely
+// reaches. The tail stops at its first unheard impact (past it the flight the looks were made from
+// spans two bounces) or where no run is significant: the noise won or the ball stopped. Each rule
+// is pinned to a factor of 2 by tests/guided_rules_test.cpp.
 #pragma once
 
 #include <cstddef>

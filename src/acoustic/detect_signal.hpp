@@ -21,6 +21,10 @@ struct SignalDetection {
   std::string failure;  // why no sequence (empty when there is one)
 };
 
+// The energy rise of x at t_s (Impact::rise_db), dB: the mean square of the millisecond after
+// t_s over that of [t_s - 3.5 ms, t_s - 0.5 ms) (the guard: the onset's own timing error).
+double RawRiseDb(const std::vector<float>& x, double rate_hz, double t_s);
+
 // The sum of the tracker weights of a sequence's members (ChannelScore::score).
 double SequenceScore(const Sequence& q);
 // The index of the longest sequence (the first of equals), -1 for none.

@@ -455,9 +455,35 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
   if (blind) AddBlindCandidates(x, m, &chunks, found, res);
 }
 
+MatchTemplate TemplateOf(const OnsetResult& r) {
+  return MatchTemplate{r.template_wave, r.template_start, r.template_onset_s};
+}
+
+MatchTemplate TemplateAt(const OnsetResult& r, double onset_s) {
+  MatchTemplate t;
+  const long offset = r.template_start - std::lround(r.template_onset_s * r.rate_hz);
+  const long start = std::lround(onset_s * r.rate_hz) + offset;
+  const long len = static_cast<long>(r.template_wave.size());
+  if (len == 0 || start < 0 || start + len > static_cast<long>(r.whitened.size())) return t;
+  t.wave.assign(r.whitened.begin() + start, r.whitened.begin() + start + len);
+  t.start = start;
+  t.onset_s = onset_s;
+  return t;
+}
+
 bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
                     double half_window_s, double min_ncc, Impact* out, double edge_penalty) {
-  const std::vector<double>& h = r.template_wave;
+  return FindByTemplate(r, TemplateOf(r), x, t_center_s, half_window_s, min_ncc, out, edge_penalty);
+}
+
+double NccNoiseSpread(const OnsetResult& r, double t0_s, double t1_s, int max_positions) {
+  return NccNoiseSpread(r, TemplateOf(r), t0_s, t1_s, max_positions);
+}
+
+bool FindByTemplate(const OnsetResult& r, const MatchTemplate& tpl, const std::vector<float>& x,
+                    double t_center_s, double half_window_s, double min_ncc, Impact* out,
+                    double edge_penalty) {
+  const std::vector<double>& h = tpl.wave;
   const std::vector<float>& w = r.whitened;
   if (h.empty() || !(r.rate_hz > 0.0) || w.size() != x.size()) return false;
   const long n = static_cast<long>(w.size()), tl = static_cast<long>(h.size());
@@ -465,9 +491,7 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   for (double v : h) hh += v * v;
   if (!(hh > 0.0)) return false;
   // Template start l <-> onset t_ref + (l - template_start) / rate.
-  auto start_of = [&](double t) {
-    return r.template_start + std::lround((t - r.template_onset_s) * r.rate_hz);
-  };
+  auto start_of = [&](double t) { return tpl.start + std::lround((t - tpl.onset_s) * r.rate_hz); };
   const long lo = std::max(1L, start_of(t_center_s - half_window_s));
   const long hi = std::min(n - tl - 2, start_of(t_center_s + half_window_s));
   if (hi < lo) return false;
@@ -499,8 +523,7 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   const double curv = cm - 2.0 * best_c + cp;
   const double d = curv < 0.0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
   Impact imp;
-  imp.time_s =
-      r.template_onset_s + (static_cast<double>(best_l - r.template_start) + d) / r.rate_hz;
+  imp.time_s = tpl.onset_s + (static_cast<double>(best_l - tpl.start) + d) / r.rate_hz;
   const double sig_samples = 0.3 * std::sqrt(std::max(0.0, 1.0 - best_c * best_c)) / best_c;
   imp.sigma_s = std::hypot(sig_samples / r.rate_hz, r.sigma_floor_s);
   imp.score = std::clamp(best_c, 0.0, 1.0);
@@ -524,16 +547,15 @@ bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_
   return true;
 }
 
-double NccNoiseSpread(const OnsetResult& r, double t0_s, double t1_s, int max_positions) {
-  const std::vector<double>& h = r.template_wave;
+double NccNoiseSpread(const OnsetResult& r, const MatchTemplate& tpl, double t0_s, double t1_s,
+                      int max_positions) {
+  const std::vector<double>& h = tpl.wave;
   const std::vector<float>& w = r.whitened;
   const long n = static_cast<long>(w.size()), tl = static_cast<long>(h.size());
   if (h.empty() || !(r.rate_hz > 0.0) || max_positions < 3) return 0.0;
   double hh = 0.0;
   for (double v : h) hh += v * v;
-  auto start_of = [&](double t) {
-    return r.template_start + std::lround((t - r.template_onset_s) * r.rate_hz);
-  };
+  auto start_of = [&](double t) { return tpl.start + std::lround((t - tpl.onset_s) * r.rate_hz); };
   const long lo = std::max(0L, start_of(t0_s)), hi = std::min(n - tl, start_of(t1_s));
   if (hi - lo < 3 || !(hh > 0.0)) return 0.0;
   const long step = std::max(1L, (hi - lo) / max_positions);

@@ -92,6 +92,23 @@ bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples
 // [t0_s, t1_s). 0 when the stretch is too short or outside the signal.
 double NccNoiseSpread(const OnsetResult& result, double t0_s, double t1_s, int max_positions);
 
+// A template other than the result's own: `wave` starts at sample `start` of result.whitened and
+// belongs to the impact whose onset is onset_s (a match starting at sample l is an onset at
+// onset_s + (l - start) / rate_hz). TemplateAt cuts one from the whitened signal at an onset, with
+// the lead of the result's own template; empty when it would leave the signal.
+struct MatchTemplate {
+  std::vector<double> wave;
+  long start = 0;
+  double onset_s = 0.0;
+};
+MatchTemplate TemplateOf(const OnsetResult& result);
+MatchTemplate TemplateAt(const OnsetResult& result, double onset_s);
+bool FindByTemplate(const OnsetResult& result, const MatchTemplate& tpl,
+                    const std::vector<float>& samples, double t_center_s, double half_window_s,
+                    double min_ncc, Impact* out, double edge_penalty = 0.0);
+double NccNoiseSpread(const OnsetResult& result, const MatchTemplate& tpl, double t0_s, double t1_s,
+                      int max_positions);
+
 // Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
 // e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin
 // (Makhoul 1975, Proc. IEEE 63(4), eqs. 38-45). r[0] must be > 0.

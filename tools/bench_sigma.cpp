@@ -7,7 +7,8 @@
 //   options: --recordings DIR (default ../shared/recordings), --seeds N, --only SUBSTRING (the
 //   rows whose name holds it), --dump FILE (one CSV line per matched impact: the error, the
 //   detector's sigma and the parts of the model, re-timed from the detected times),
-//   --quiet-room (synth without noise, real sounds without room noise)
+//   --quiet-room (synth without noise, real sounds without room noise), --noise-db DB (real
+//   sounds: room noise DB louder (+) or quieter (-) than recorded, realsound --noise-db)
 //
 // Rows (each file rendered in memory, written as 24-bit FLAC and detected from the file, as
 // `bouncecal detect FILE --sequence all` does):
@@ -67,6 +68,7 @@ struct Options {
   std::string recordings = std::string(BOUNCECAL_SOURCE_DIR) + "/../shared/recordings";
   std::string only, dump;
   bool quiet_room = false;
+  double noise_db = 0.0;
 };
 
 // One rendered file: its audio, its truth, and the truth's own uncertainty on intervals.
@@ -255,6 +257,7 @@ std::vector<Rendered> RealSoundCases(const Options& o) {
         spec.seed = spec.drops.seed = spec.truth.scatter_seed = static_cast<std::uint64_t>(seed);
         if (per_impact) spec.cut_choice = CutChoice::kPerImpact;
         if (o.quiet_room) spec.noise = false;
+        spec.noise_gain_db = o.noise_db;
         out.push_back({name, "realsound", RenderRealSound(*src, spec).recording,
                        per_impact ? *src->alignment_sigma_s : 0.0});
       }
@@ -276,6 +279,10 @@ Options Parse(int argc, char** argv) {
       o.only = argv[++i];
     } else if (a == "--dump" && has_value) {
       o.dump = argv[++i];
+    } else if (a == "--noise-db" && has_value) {
+      o.noise_db = std::atof(argv[++i]);
+      if (!(o.noise_db >= -120.0 && o.noise_db <= 60.0))
+        throw Error(ErrorCode::kUsage, "--noise-db: -120..60");
     } else if (a == "--quiet-room") {
       o.quiet_room = true;
     } else {

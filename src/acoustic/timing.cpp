@@ -12,6 +12,7 @@
 #include "bouncecal/acoustic/onsets.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/parallel.hpp"
+#include "bouncecal/core/stats.hpp"
 #include "timing_parts.hpp"
 
 namespace bouncecal {
@@ -204,16 +205,88 @@ LocalMeasures Measure(const Neighbourhood& nb, const std::vector<float>& x, doub
   return m;
 }
 
-// Robust spread (1.4826 median |.|) of <w[l, l + L), g> over the template starts l of the noise
-// window before `onset` (timing.hpp: the noise term). 0 when the window is too short.
-double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, double onset,
-                      double rate_hz, const TimingOptions& o) {
-  const long L = static_cast<long>(g.size());
-  const long i0 = static_cast<long>(std::floor(onset)) + 1;
+// The noise window before an onset: samples [lo, hi) (noise_window_s, ending noise_guard_s
+// before the onset), where the template's window starts there (`at`, lead_s before the onset),
+// and the decay of the whitened noise's log power over the window, per sample (`slope`, <= 0).
+//
+// The noise before an onset is often the ringing of the impacts before it, which decays
+// exponentially (a damped mode, the room's reverberation), so its level under the template is
+// below the window's (whose middle is ~11 ms earlier). Measured on real impact sounds re-placed at
+// exact times (tools/bench_sigma, one cut, 8 seeds): with the window's level, interval pull RMS
+// 0.77-0.79 on ping-pong (the noise term dominant on 85 % of the members; the same with the room
+// noise 10 dB louder or quieter: the "noise" there is the earlier impacts' ringing), 0.73-1.01 on
+// the basketball, 0.71-0.74 on the superball; carried along the decay: 0.92-0.96, 0.95-1.23,
+// 0.75-0.79. The decay is the Theil-Sen slope (the median of the pairwise slopes, Sen 1968) of
+// the log of the robust power of blocks of the template's length (robust to a block holding an
+// earlier impact's attack); 0 with fewer than kMinTrendBlocks blocks. A rise toward the onset is
+// not carried: it is the impact's own lead-in (its leading edge within the guard; in the re-placed
+// real sounds, the cut's copy of its recording's noise, which the template holds too: the loud
+// members' rise shrank from x1.10-1.27 to x1.03-1.11 with the room noise 10 dB louder), not
+// noise; carried, it took the rubber ball's pull RMS from 0.70-1.02 to 0.67-0.97. The price: in
+// stationary noise the slope's own scatter (x0.86-1.14, p10-p90, on the synth presets) is carried
+// on its falling half only, sigma_noise there ~4 % short.
+struct NoiseWindow {
+  long lo = 0, hi = 0;
+  double at = 0.0, slope = 0.0;
+  // Amplitude factor carrying noise at sample n to sample n + (at - n) along the trend.
+  double Carry(double n) const { return std::exp(0.5 * slope * (at - n)); }
+};
+
+// Four blocks: three pairwise slopes' worth of agreement at least (a 20-ms window at 16 kHz and a
+// 1.5-ms template holds 13).
+constexpr std::size_t kMinTrendBlocks = 4;
+
+NoiseWindow NoiseWindowBefore(const Neighbourhood& nb, double onset, double rate_hz,
+                              const TimingOptions& o, long block) {
+  NoiseWindow nw;
+  const long i0 = static_cast<long>(std::floor(onset)) + 1;  // first sample of the new regime
   const long guard = std::max(2L, std::lround(o.noise_guard_s * rate_hz));
   const long noise_len = std::max(16L, std::lround(o.noise_window_s * rate_hz));
-  const long hi = std::max(nb.begin, i0 - guard) - L;
-  const long lo = std::max(nb.begin, i0 - guard - noise_len);
+  nw.hi = std::max(nb.begin, i0 - guard);
+  nw.lo = std::max(nb.begin, nw.hi - noise_len);
+  nw.at = static_cast<double>(i0 - std::max(1L, std::lround(o.lead_s * rate_hz)));
+  std::vector<double> t, lp, sq;
+  for (long b = nw.lo; b + block <= std::min(nw.hi, nb.end()); b += block) {
+    sq.clear();
+    for (long i = b; i < b + block; ++i) sq.push_back(std::fabs(static_cast<double>(nb.at(i))));
+    const auto mid = sq.begin() + static_cast<std::ptrdiff_t>(sq.size() / 2);
+    std::nth_element(sq.begin(), mid, sq.end());
+    if (!(*mid > 0.0)) continue;
+    t.push_back(static_cast<double>(b) + 0.5 * static_cast<double>(block));
+    lp.push_back(2.0 * std::log(*mid));  // the robust power's log, up to a constant
+  }
+  if (t.size() < kMinTrendBlocks) return nw;
+  std::vector<double> slopes;
+  for (std::size_t i = 0; i < t.size(); ++i)
+    for (std::size_t j = i + 1; j < t.size(); ++j)
+      slopes.push_back((lp[j] - lp[i]) / (t[j] - t[i]));
+  nw.slope = std::min(0.0, Median(std::move(slopes)));
+  return nw;
+}
+
+// Robust rms (1.4826 median |.|) of the noise window's samples, each carried to the middle of
+// the template's window (L / 2 after `at`) along the decay: the local noise level under the
+// template (the cycle-slip gate's E_n, which must be the same noise as its s_c).
+double NoiseRmsAtTemplate(const Neighbourhood& nb, const NoiseWindow& nw, long L) {
+  std::vector<double> v;
+  for (long i = nw.lo; i < nw.hi; ++i)
+    v.push_back(std::fabs(static_cast<double>(nb.at(i))) *
+                nw.Carry(static_cast<double>(i) - 0.5 * static_cast<double>(L)));
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return 1.4826 * *mid;
+}
+
+// Robust spread (1.4826 median |.|) of <w[l, l + L), g> over the template starts l of the noise
+// window, each carried to the template's own start along the noise's level trend (NoiseWindow):
+// the noise term of timing.hpp. 0 when the window is too short.
+double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g,
+                      const NoiseWindow& nw) {
+  const long L = static_cast<long>(g.size());
+  const long hi = nw.hi - L;
+  const long lo = nw.lo;
+  auto carry = [&](long l) { return nw.Carry(static_cast<double>(l)); };
   std::vector<double> p;
   const std::vector<double> wd(nb.w.begin(), nb.w.end());  // exact: see Dot4
   // Every kNoiseStride-th position: the spread is as well estimated (hundreds of positions in a
@@ -229,7 +302,7 @@ double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, dou
       for (int t = 0; t < 4; ++t) b[t] = wd.data() + (l + t * kNoiseStride - nb.begin);
       double d[4];
       Dot4(a, b, len, d);
-      for (int t = 0; t < 4; ++t) p.push_back(std::fabs(d[t]));
+      for (int t = 0; t < 4; ++t) p.push_back(std::fabs(d[t]) * carry(l + t * kNoiseStride));
       l = l3;
       continue;
     }
@@ -238,7 +311,7 @@ double ProjectedNoise(const Neighbourhood& nb, const std::vector<double>& g, dou
     } else {
       for (long j = 0; j < L; ++j) acc += g[static_cast<std::size_t>(j)] * nb.at(l + j);
     }
-    p.push_back(std::fabs(acc));
+    p.push_back(std::fabs(acc) * carry(l));
   }
   if (p.size() < 8) return 0.0;
   const auto mid = p.begin() + static_cast<std::ptrdiff_t>(p.size() / 2);
@@ -543,8 +616,11 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
   const double lag = CorrelationPeak(nb, t.h, lc.lag, &xy_peak);
   d->by_template = true;
   out->onset = t.t_ref + (lag - static_cast<double>(t.start));
+  const NoiseWindow noise = NoiseWindowBefore(nb, out->onset, rate_hz, o, g.tl);
+  out->noise_rms_at_template = NoiseRmsAtTemplate(nb, noise, g.tl);
   // Ambiguity: noise moves each lag's NCC by s_c = spread(<n, h>) / (|h| |y|) (measured on the
-  // noise window before the onset, like the noise term); each rival peak j of the search window
+  // noise window before the onset and carried to the template along its decay, like the noise
+  // term); each rival peak j of the search window
   // beats the chosen one with probability p_j = P(N(0, 2 s_c^2 (1 - rho_j)) > c1 - c_j), and then
   // the time is off by its lag difference dl_j. rho_j = <h, h shifted by dl_j> / |h|^2: the noise
   // projected on the template at two lags is correlated as the template is with itself (the
@@ -563,8 +639,7 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
       yy += static_cast<double>(nb.at(lc.lag + j)) * nb.at(lc.lag + j);
     out->yy = yy;
     if (yy > 0.0) d->ncc = std::clamp(std::max(lc.ncc, xy_peak / std::sqrt(t.hh * yy)), -1.0, 1.0);
-    out->ncc_noise =
-        std::max(1e-12, ProjectedNoise(nb, t.h, out->onset, rate_hz, o) / std::sqrt(t.hh * yy));
+    out->ncc_noise = std::max(1e-12, ProjectedNoise(nb, t.h, noise) / std::sqrt(t.hh * yy));
   }
   if (!is_template) {
     double var = 0.0, odds = 1.0;  // the chosen peak's weight 1, each rival's p_j
@@ -590,17 +665,16 @@ bool TimeByTemplate(const Neighbourhood& nb, long anchor, bool is_template, cons
   // sample: ratios of 0.3 for members placed at 0.93 of the template.)
   const double a = is_template ? 1.0 : xy_peak / t.hh;
   d->level_ratio = a;
-  // Noise: the spread of the noise's projection on h' before the onset (not assumed white):
-  // the delay estimate moves by <n, h'> / (a |h'|^2).
   // Noise: the lag moves by C'/(-C'') of the correlation C at the true lag: C' = <n, h'> (the
   // spread of the noise's projection on h', measured on the noise before the onset, not assumed
-  // white), -C'' = a |h'|^2 - <n, h''>. To second order in the curvature's relative noise
-  // s = spread(<n, h''>) / (a |h'|^2): var = (spread(<n, h'>) / (a |h'|^2))^2 (1 + 3 s^2). The
-  // first factor is the Cramer-Rao bound in white noise (Kay 1993, eq. 3.36); the second is
-  // what a noisy peak curvature adds at low SNR (s reaches 0.3-0.8 on the quietest members).
+  // white, and carried to the template along the noise's decay: NoiseWindow), -C'' = a |h'|^2 - <n,
+  // h''>. To second order in the curvature's relative noise s = spread(<n, h''>) / (a |h'|^2): var
+  // = (spread(<n, h'>) / (a |h'|^2))^2 (1 + 3 s^2). The first factor is the Cramer-Rao bound in
+  // white noise (Kay 1993, eq. 3.36); the second is what a noisy peak curvature adds at low SNR (s
+  // reaches 0.3-0.8 on the quietest members).
   const double scale = std::max(std::fabs(a) * t.dd, 1e-300);
-  d->curvature_noise = ProjectedNoise(nb, t.hdd, out->onset, rate_hz, o) / scale;
-  d->sigma_noise = o.noise_gain * ProjectedNoise(nb, t.hd, out->onset, rate_hz, o) / scale *
+  d->curvature_noise = ProjectedNoise(nb, t.hdd, noise) / scale;
+  d->sigma_noise = o.noise_gain * ProjectedNoise(nb, t.hd, noise) / scale *
                    std::sqrt(1.0 + 3.0 * d->curvature_noise * d->curvature_noise);
   // The level-dependent shape drift: reported, not in sigma (timing.hpp).
   d->shape_drift = -o.shape_s_per_neper * rate_hz * std::log(std::max(std::fabs(a), 1e-6));

@@ -61,9 +61,10 @@ struct Template {
 struct MemberTime {
   double onset = 0.0;
   double sigma2 = 0.0;
-  long lag = 0;            // chosen integer template start (template-timed members)
-  double ncc_noise = 0.0;  // s_c: the NCC's spread under the local noise
-  double yy = 0.0;         // the member's energy over the template at the chosen lag
+  long lag = 0;                        // chosen integer template start (template-timed members)
+  double ncc_noise = 0.0;              // s_c: the NCC's spread under the local noise
+  double yy = 0.0;                     // the member's energy over the template at the chosen lag
+  double noise_rms_at_template = 0.0;  // the local noise rms under the template (its decay)
 };
 
 // Normalised cross-correlation of the template h (energy hh) with nb at template start l.

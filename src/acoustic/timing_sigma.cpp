@@ -208,8 +208,9 @@ void SlipModel(const std::vector<double>& own_aic, const std::vector<double>& ow
         if (l < lobe_lo || l > lobe_hi) c_alt = std::max(c_alt, ncc(l));
       // The NCC at each lag moves by the noise (s_c) and by the shape residual, an energy
       // W |y|^2 that projects on the template as the local noise's energy E_n does (s_c):
-      // s_shape = s_c sqrt(W |y|^2 / E_n), added in quadrature.
-      const double e_noise = static_cast<double>(g.tl) * d.noise_rms * d.noise_rms;
+      // s_shape = s_c sqrt(W |y|^2 / E_n), added in quadrature (E_n under the template, as s_c).
+      const double e_noise =
+          static_cast<double>(g.tl) * mts[k].noise_rms_at_template * mts[k].noise_rms_at_template;
       const double s_shape =
           e_noise > 0.0 ? mts[k].ncc_noise * std::sqrt(shape_share * mts[k].yy / e_noise) : 0.0;
       const double s_ncc = std::hypot(mts[k].ncc_noise, s_shape);

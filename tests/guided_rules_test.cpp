@@ -138,7 +138,8 @@ class Scene {
   bool BestMatchAt(double t_s, double half_s, double template_onset_s) const {
     const OnsetResult onsets = Onsets(template_onset_s, 2e-6);
     Impact m;
-    return FindByTemplate(onsets, w_, t_s, half_s, -1.0, &m, GuidedOptions{}.edge_penalty) &&
+    return FindByTemplate(onsets, TemplateOf(onsets), w_, t_s, half_s, -1.0, &m,
+                          GuidedOptions{}.edge_penalty) &&
            std::fabs(m.time_s - t_s) < 1.5 / kRate;
   }
 
@@ -146,8 +147,9 @@ class Scene {
   // third of the flight before), floored at 1 / sqrt(L) as the search floors it.
   double NoiseNcc(const std::vector<double>& given, double t_c, double dn) const {
     const OnsetResult onsets = Onsets(given.front(), 2e-6);
-    return std::max(NccNoiseSpread(onsets, t_c - 2.0 * dn / 3.0, t_c - dn / 3.0, 256),
-                    1.0 / std::sqrt(static_cast<double>(kTemplateSamples)));
+    return std::max(
+        NccNoiseSpread(onsets, TemplateOf(onsets), t_c - 2.0 * dn / 3.0, t_c - dn / 3.0, 256),
+        1.0 / std::sqrt(static_cast<double>(kTemplateSamples)));
   }
 
  private:

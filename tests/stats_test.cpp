@@ -66,7 +66,8 @@ TEST(Stats, LogGammaAndBesselI0AreTheStandardLibrarysValues) {
   for (double x = 0.05; x < 60.0; x *= 1.07) EXPECT_EQ(LogGamma(x), std::lgamma(x)) << x;
   EXPECT_NEAR(LogGamma(0.5), 0.5 * std::log(M_PI), 1e-15);
   EXPECT_EQ(LogGamma(1.0), 0.0);
-  for (double x = 0.0; x <= 12.0; x += 0.013) EXPECT_EQ(BesselI0(x), std::cyl_bessel_i(0.0, x)) << x;
+  for (double x = 0.0; x <= 12.0; x += 0.013)
+    EXPECT_EQ(BesselI0(x), std::cyl_bessel_i(0.0, x)) << x;
   EXPECT_NEAR(BesselI0(1.0), 1.2660658777520082, 1e-15);  // A&S table 9.8
   EXPECT_NEAR(BesselI0(3.0), 4.8807925858650249, 1e-14);
 }

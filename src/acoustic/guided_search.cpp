@@ -138,8 +138,8 @@ void FillGaps(const OnsetResult& onsets, const MatchTemplate& tpl, const std::ve
       continue;
     }
     const double d = q->impacts[k].time_s - q->impacts[k - 1].time_s;
-    const double r0 =
-        std::clamp(std::exp(TrendAt(*q, k + 1, go).log_r), to.min_ratio, to.max_ratio);
+    const RatioTrend trend = TrendAt(*q, k + 1, go);
+    const double r0 = std::clamp(std::exp(trend.log_r), to.min_ratio, to.max_ratio);
     auto flights = [](double r, int n) {  // r + r^2 + ... + r^n
       double sum = 0.0, p = 1.0;
       for (int j = 1; j <= n; ++j) sum += (p *= r);
@@ -160,7 +160,7 @@ void FillGaps(const OnsetResult& onsets, const MatchTemplate& tpl, const std::ve
     for (int j = 1; j <= m; ++j) {
       dn *= r;
       t += dn;
-      const Look look = LookAt(onsets, tpl, x, go, t, dn, TrendAt(*q, k + 1, go).spread);
+      const Look look = LookAt(onsets, tpl, x, go, t, dn, trend.spread);
       if (look.any && look.p <= go.member_p) found.push_back(look.match);
     }
     q->impacts.insert(q->impacts.begin() + static_cast<std::ptrdiff_t>(k + 1), found.begin(),

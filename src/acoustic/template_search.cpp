@@ -471,15 +471,6 @@ MatchTemplate TemplateAt(const OnsetResult& r, double onset_s) {
   return t;
 }
 
-bool FindByTemplate(const OnsetResult& r, const std::vector<float>& x, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out, double edge_penalty) {
-  return FindByTemplate(r, TemplateOf(r), x, t_center_s, half_window_s, min_ncc, out, edge_penalty);
-}
-
-double NccNoiseSpread(const OnsetResult& r, double t0_s, double t1_s, int max_positions) {
-  return NccNoiseSpread(r, TemplateOf(r), t0_s, t1_s, max_positions);
-}
-
 bool FindByTemplate(const OnsetResult& r, const MatchTemplate& tpl, const std::vector<float>& x,
                     double t_center_s, double half_window_s, double min_ncc, Impact* out,
                     double edge_penalty) {

@@ -249,11 +249,10 @@ NoiseWindow NoiseWindowBefore(const Neighbourhood& nb, double onset, double rate
   for (long b = nw.lo; b + block <= std::min(nw.hi, nb.end()); b += block) {
     sq.clear();
     for (long i = b; i < b + block; ++i) sq.push_back(std::fabs(static_cast<double>(nb.at(i))));
-    const auto mid = sq.begin() + static_cast<std::ptrdiff_t>(sq.size() / 2);
-    std::nth_element(sq.begin(), mid, sq.end());
-    if (!(*mid > 0.0)) continue;
+    const double median_abs = UpperMedian(sq);
+    if (!(median_abs > 0.0)) continue;
     t.push_back(static_cast<double>(b) + 0.5 * static_cast<double>(block));
-    lp.push_back(2.0 * std::log(*mid));  // the robust power's log, up to a constant
+    lp.push_back(2.0 * std::log(median_abs));  // the robust power's log, up to a constant
   }
   if (t.size() < kMinTrendBlocks) return nw;
   std::vector<double> slopes;
@@ -272,10 +271,7 @@ double NoiseRmsAtTemplate(const Neighbourhood& nb, const NoiseWindow& nw, long L
   for (long i = nw.lo; i < nw.hi; ++i)
     v.push_back(std::fabs(static_cast<double>(nb.at(i))) *
                 nw.Carry(static_cast<double>(i) - 0.5 * static_cast<double>(L)));
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return 1.4826 * *mid;
+  return v.empty() ? 0.0 : 1.4826 * UpperMedian(std::move(v));
 }
 
 // Robust spread (1.4826 median |.|) of <w[l, l + L), g> over the template starts l of the noise

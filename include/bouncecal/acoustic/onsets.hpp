@@ -77,25 +77,11 @@ struct OnsetResult {
   double sigma_floor_s = 0.0;  // timing floor used for these onsets
 };
 
-// Guided search (the tracker knows where the next impact should be): the best normalised
-// cross-correlation of the template with the whitened signal for onsets within
-// [t_center_s - half_window_s, t_center_s + half_window_s]. Near the noise level (NCC ~0.35) a
-// noise peak can match as well as the impact, so positions are ranked by
-// NCC - edge_penalty * ((t - t_center_s) / half_window_s)^2 (the prediction is best at the
-// centre). Returns true and fills *out (time from the NCC peak, parabolic interpolation; sigma
-// from the NCC; score = NCC; amplitude from `samples`) when the chosen NCC reaches min_ncc.
-bool FindByTemplate(const OnsetResult& result, const std::vector<float>& samples, double t_center_s,
-                    double half_window_s, double min_ncc, Impact* out, double edge_penalty = 0.0);
-
-// The spread of the template's NCC with the whitened signal where it meets no impact: 1.4826 x
-// the median absolute deviation over (at most max_positions evenly spaced) template positions of
-// [t0_s, t1_s). 0 when the stretch is too short or outside the signal.
-double NccNoiseSpread(const OnsetResult& result, double t0_s, double t1_s, int max_positions);
-
-// A template other than the result's own: `wave` starts at sample `start` of result.whitened and
-// belongs to the impact whose onset is onset_s (a match starting at sample l is an onset at
-// onset_s + (l - start) / rate_hz). TemplateAt cuts one from the whitened signal at an onset, with
-// the lead of the result's own template; empty when it would leave the signal.
+// A template to match: `wave` starts at sample `start` of result.whitened and belongs to the
+// impact whose onset is onset_s (a match starting at sample l is an onset at
+// onset_s + (l - start) / rate_hz). TemplateOf is the result's own (its strongest onset's);
+// TemplateAt cuts one from the whitened signal at an onset, with the lead of the result's own
+// template, empty when it would leave the signal.
 struct MatchTemplate {
   std::vector<double> wave;
   long start = 0;
@@ -103,9 +89,21 @@ struct MatchTemplate {
 };
 MatchTemplate TemplateOf(const OnsetResult& result);
 MatchTemplate TemplateAt(const OnsetResult& result, double onset_s);
+
+// Guided search (the tracker knows where the next impact should be): the best normalised
+// cross-correlation of the template with the whitened signal for onsets within
+// [t_center_s - half_window_s, t_center_s + half_window_s]. Near the noise level (NCC ~0.35) a
+// noise peak can match as well as the impact, so positions are ranked by
+// NCC - edge_penalty * ((t - t_center_s) / half_window_s)^2 (the prediction is best at the
+// centre). Returns true and fills *out (time from the NCC peak, parabolic interpolation; sigma
+// from the NCC; score = NCC; amplitude from `samples`) when the chosen NCC reaches min_ncc.
 bool FindByTemplate(const OnsetResult& result, const MatchTemplate& tpl,
                     const std::vector<float>& samples, double t_center_s, double half_window_s,
                     double min_ncc, Impact* out, double edge_penalty = 0.0);
+
+// The spread of the template's NCC with the whitened signal where it meets no impact: 1.4826 x
+// the median absolute deviation over (at most max_positions evenly spaced) template positions of
+// [t0_s, t1_s). 0 when the stretch is too short or outside the signal.
 double NccNoiseSpread(const OnsetResult& result, const MatchTemplate& tpl, double t0_s, double t1_s,
                       int max_positions);
 

@@ -1,5 +1,5 @@
 // Rules of the detection of one signal (src/acoustic/detect_signal.cpp) pinned to within a
-// factor of 2 (issue 29; tools/mutations.txt a102-a105): an impact's energy rise (Impact::rise_db,
+// factor of 2 (issue 29; tools/mutations.txt a102-a107): an impact's energy rise (Impact::rise_db,
 // what the tracker weighs a candidate's attack by) compares the millisecond after its onset with
 // the few milliseconds before it.
 //
@@ -81,6 +81,27 @@ TEST(SignalRules, TheAttackIsTheMillisecondAfterTheOnset) {
   const double rise = ClickRiseDb(Signal(std::sqrt(2.0 * p), 1.0));
   ASSERT_FALSE(std::isnan(rise));
   EXPECT_NEAR(rise, 10.0 * std::log10(1.0 + kClickMeanSquare / p), 1.0);
+}
+
+// The sound before an onset ends 0.5 ms before it (a guard for the onset's own timing error): a
+// burst 0.9-0.6 ms before the click is in it (the click rises ~0 dB over it; a 1-ms guard would
+// leave it out), one 0.45-0.3 ms before is not (the click rises ~60 dB over the noise; a 0.25-ms
+// guard would count it). The burst's amplitude makes its mean square over the 3-ms window equal
+// to the click's over its millisecond.
+TEST(SignalRules, TheRiseIgnoresTheHalfMillisecondBeforeTheOnset) {
+  const double amplitude = std::sqrt(2.0 * kClickMeanSquare * 3.0 / 0.3);
+  auto rise_with_burst = [&](double from_ms, double to_ms) {
+    std::vector<float> x = Signal(0.0, 0.0);  // the noise and the click
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const double t = static_cast<double>(i) / kRateHz;
+      const double before_ms = (kClickS - t) * 1e3;
+      if (before_ms <= from_ms && before_ms > to_ms)
+        x[i] += static_cast<float>(amplitude * std::sin(2.0 * kPi * 8000.0 * t));
+    }
+    return RawRiseDb(x, kRateHz, kClickS);
+  };
+  EXPECT_LT(rise_with_burst(0.9, 0.6), 10.0) << "a burst 0.9-0.6 ms before the click";
+  EXPECT_GT(rise_with_burst(0.45, 0.3), 30.0) << "a burst 0.45-0.3 ms before the click";
 }
 
 }  // namespace

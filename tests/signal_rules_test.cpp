@@ -104,5 +104,56 @@ TEST(SignalRules, TheRiseIgnoresTheHalfMillisecondBeforeTheOnset) {
   EXPECT_GT(rise_with_burst(0.45, 0.3), 30.0) << "a burst 0.45-0.3 ms before the click";
 }
 
+// ---- a member inside an attack's sound is moved to the attack (MoveMembersToTheirAttacks) -------
+// A member at 1.0 s of a sequence with flights of ~0.2 s; a candidate before it whose rise and
+// level are set; the member does not rise (-2 dB). Rules: the attack began within 3.5 ms before
+// the member (the rise's window), rises by >= 6 dB, and is at most 6 dB quieter than the member.
+double MovedTo(double attack_before_s, double attack_rise_db, double attack_level_db,
+               double member_rise_db = -2.0) {
+  std::vector<Impact> cands;
+  auto impact = [](double t, double rise_db, double amplitude) {
+    Impact i;
+    i.time_s = t;
+    i.rise_db = rise_db;
+    i.amplitude = amplitude;
+    return i;
+  };
+  Sequence q;
+  q.impacts = {impact(0.6, 20.0, 0.2), impact(0.81, 20.0, 0.18), impact(1.0, member_rise_db, 0.16),
+               impact(1.17, 20.0, 0.15)};
+  cands = q.impacts;
+  cands.push_back(
+      impact(1.0 - attack_before_s, attack_rise_db, 0.16 * std::pow(10.0, attack_level_db / 20.0)));
+  std::sort(cands.begin(), cands.end(),
+            [](const Impact& a, const Impact& b) { return a.time_s < b.time_s; });
+  std::vector<Sequence> seqs{q};
+  MoveMembersToTheirAttacks(cands, TrackOptions{}, &seqs);
+  return seqs[0].impacts[2].time_s;
+}
+bool Moved(double before_s, double rise_db, double level_db, double member_rise_db = -2.0) {
+  return std::fabs(MovedTo(before_s, rise_db, level_db, member_rise_db) - (1.0 - before_s)) < 1e-12;
+}
+
+TEST(SignalRules, AMemberInsideAnAttacksSoundIsMovedToTheAttack) {
+  EXPECT_TRUE(Moved(0.003, 8.0, -3.0)) << "the real rubber ball: 3.06 ms, 21 dB, -2.8 dB";
+  EXPECT_FALSE(Moved(0.003, 8.0, -3.0, 1.0)) << "a member that rises is its own attack";
+}
+// kAttackReachS = 3.5 ms: 3.0 ms moves, 4.5 ms does not (x2: 7 ms; x1/2: 1.75 ms).
+TEST(SignalRules, TheAttackReachIsTheRiseWindow) {
+  EXPECT_TRUE(Moved(0.0030, 8.0, -3.0));
+  EXPECT_FALSE(Moved(0.0045, 8.0, -3.0));
+}
+// kAttackRiseDb = 6 dB: an attack rising 8 dB moves the member, one rising 4.5 dB does not.
+TEST(SignalRules, TheAttackMustRiseBySixDecibels) {
+  EXPECT_TRUE(Moved(0.003, 8.0, -3.0));
+  EXPECT_FALSE(Moved(0.003, 4.5, -3.0));
+}
+// kAttackLevelDb = 6 dB: an attack 4 dB below the member moves it, one 8 dB below is a precursor
+// (the real basketball's cut: 19 dB below its attack) and does not.
+TEST(SignalRules, APrecursorFarQuieterThanTheMemberIsNotItsAttack) {
+  EXPECT_TRUE(Moved(0.003, 8.0, -4.0));
+  EXPECT_FALSE(Moved(0.003, 8.0, -8.0));
+}
+
 }  // namespace
 }  // namespace bouncecal

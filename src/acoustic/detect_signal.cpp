@@ -13,30 +13,34 @@
 #include "guided_search.hpp"
 
 namespace bouncecal {
-namespace {
 
-// RawRiseDb: mean square over [t, t + kRiseAfterS) against
-// [t - kRiseBeforeS, t - kRiseGuardS). One millisecond holds a hard impact's attack (contact
-// 20-150 us) and its first response; 3 ms before (beyond a guard for the onset's own timing
-// error) holds the decaying sound of what came earlier, even at a low plate mode's period.
-constexpr double kRiseAfterS = 0.001, kRiseBeforeS = 0.0035, kRiseGuardS = 0.0005;
-
-}  // namespace
-
-double RawRiseDb(const std::vector<float>& x, double rate_hz, double t_s) {
-  const long n = static_cast<long>(x.size());
-  const long i = std::lround(t_s * rate_hz);
-  auto mean_square = [&](long a, long b) {
-    a = std::clamp(a, 0L, n), b = std::clamp(b, 0L, n);
-    double e = 0.0;
-    for (long k = a; k < b; ++k)
-      e += static_cast<double>(x[static_cast<std::size_t>(k)]) * x[static_cast<std::size_t>(k)];
-    return b > a ? e / static_cast<double>(b - a) : 0.0;
-  };
-  const double post = mean_square(i, i + std::lround(kRiseAfterS * rate_hz) + 1);
-  const double pre =
-      mean_square(i - std::lround(kRiseBeforeS * rate_hz), i - std::lround(kRiseGuardS * rate_hz));
-  return 10.0 * std::log10((post + 1e-30) / (pre + 1e-30));
+void MoveMembersToTheirAttacks(const std::vector<Impact>& candidates, const TrackOptions& to,
+                               std::vector<Sequence>* sequences) {
+  std::vector<double> members;
+  for (const Sequence& q : *sequences)
+    for (const Impact& m : q.impacts) members.push_back(m.time_s);
+  std::sort(members.begin(), members.end());
+  auto is_member = [&](double t) { return std::binary_search(members.begin(), members.end(), t); };
+  for (Sequence& q : *sequences) {
+    for (std::size_t k = 0; k < q.impacts.size(); ++k) {
+      Impact& m = q.impacts[k];
+      if (m.rise_db > 0.0) continue;
+      // The strongest attack among the candidates whose sound the member's rise window holds
+      // (begun 0.5-3.5 ms before it: RawRiseDb's window before the onset, past its guard).
+      const Impact* attack = nullptr;
+      for (const Impact& c : candidates) {
+        const double before = m.time_s - c.time_s;
+        if (before < 5e-4 || before > kAttackReachS || is_member(c.time_s)) continue;
+        if (c.rise_db < kAttackRiseDb ||
+            (k > 0 && c.time_s - q.impacts[k - 1].time_s < to.min_interval_s))
+          continue;
+        if (20.0 * std::log10(c.amplitude / std::max(m.amplitude, 1e-12)) < -kAttackLevelDb)
+          continue;
+        if (!attack || c.rise_db > attack->rise_db) attack = &c;
+      }
+      if (attack) m = *attack;
+    }
+  }
 }
 
 double SequenceScore(const Sequence& q) {
@@ -77,6 +81,7 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz,
   to.min_interval_s = options.min_interval_s;
   to.min_sequence_impacts = options.min_sequence_impacts;
   out.sequences = TrackSequences(out.candidates, duration_s, to);
+  MoveMembersToTheirAttacks(out.candidates, to, &out.sequences);
   if (options.guided_search)
     ExtendByTemplate(onsets, x, duration_s, to, GuidedOptions{}, &out.sequences);
 

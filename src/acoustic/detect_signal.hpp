@@ -8,6 +8,7 @@
 
 #include "bouncecal/acoustic/detect.hpp"
 #include "bouncecal/acoustic/onsets.hpp"
+#include "bouncecal/acoustic/sequence.hpp"
 
 namespace bouncecal {
 
@@ -21,9 +22,18 @@ struct SignalDetection {
   std::string failure;  // why no sequence (empty when there is one)
 };
 
-// The energy rise of x at t_s (Impact::rise_db), dB: the mean square of the millisecond after
-// t_s over that of [t_s - 3.5 ms, t_s - 0.5 ms) (the guard: the onset's own timing error).
-double RawRiseDb(const std::vector<float>& x, double rate_hz, double t_s);
+// A member that does not rise (Impact::rise_db <= 0) inside the sound of an attack that began
+// within the rise's window before it (kAttackReachS = RawRiseDb's 3.5 ms: what its rise compared
+// with), by a candidate that is not itself a member, rises by kAttackRiseDb (OnsetOptions::
+// min_rise_db's 6 dB) or more, and is not more than kAttackLevelDb below the member (the level
+// scatter of one ball's impacts, plausibility.hpp, is at most ~5 dB; a precursor far quieter than
+// the attack is another sound: the real basketball's, 19 dB below), is that attack's ringing:
+// the member is moved to the attack. (The real rubber ball: two members were its attacks' second
+// peaks, 3.06 ms late, chosen by the tracker over the attacks when a longer tail made the ratios
+// smoother that way; the hand marks are at the attacks.)
+constexpr double kAttackReachS = 0.0035, kAttackRiseDb = 6.0, kAttackLevelDb = 6.0;
+void MoveMembersToTheirAttacks(const std::vector<Impact>& candidates, const TrackOptions& to,
+                               std::vector<Sequence>* sequences);
 
 // The sum of the tracker weights of a sequence's members (ChannelScore::score).
 double SequenceScore(const Sequence& q);

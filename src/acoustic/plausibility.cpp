@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "bouncecal/acoustic/sequence.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/format.hpp"
 #include "bouncecal/core/stats.hpp"
@@ -253,25 +254,40 @@ std::vector<Warning> EnforcePlausibility(std::vector<Sequence>* sequences,
            -1, "nothing to do if these are not bounces; else --start/--end around the drop"});
     }
   }
-  // Sequences far quieter than the loudest one at the same impact speed: not this ball.
-  double loudest = -std::numeric_limits<double>::infinity();
-  for (std::size_t s = 0; s < seqs.size(); ++s)
-    if (keep[s]) loudest = std::max(loudest, LevelAtUnitSpeedDb(seqs[s]));
+  // One ball, one surface, one microphone: every sequence sounds as loud at the same impact speed.
+  // The reference is the best-supported sequence (the largest sum of member weights, the
+  // tracker's evidence, sequence.hpp), not the loudest: a chain of re-triggers inside a loud
+  // impact's ringing takes that impact's level at the speed of millisecond flights, and would
+  // outshine the ball. A sequence far quieter than the reference (handling taps) or far louder
+  // (another impact's ringing, or another object) is not this ball.
+  std::size_t ref = seqs.size();
+  double ref_weight = -std::numeric_limits<double>::infinity();
   for (std::size_t s = 0; s < seqs.size(); ++s) {
     if (!keep[s]) continue;
-    const double below = loudest - LevelAtUnitSpeedDb(seqs[s]);
-    if (!(below > o.sequence_level_tolerance_db)) continue;
+    double w = 0.0;
+    for (const Impact& i : seqs[s].impacts) w += CandidateWeight(i);
+    if (w > ref_weight) ref_weight = w, ref = s;
+  }
+  const double ref_level = ref < seqs.size() ? LevelAtUnitSpeedDb(seqs[ref]) : 0.0;
+  for (std::size_t s = 0; s < seqs.size(); ++s) {
+    if (!keep[s] || s == ref) continue;
+    const double below = ref_level - LevelAtUnitSpeedDb(seqs[s]);
+    if (!(std::fabs(below) > o.sequence_level_tolerance_db)) continue;
     keep[s] = false;
     out.push_back({"phantom_removed",
                    labels[s] + ": " + std::to_string(seqs[s].impacts.size()) +
                        " impacts removed: at the same impact speed they are " +
-                       FormatFixed(below, 1) +
-                       " dB quieter than the loudest sequence of this recording, so they are not "
+                       FormatFixed(std::fabs(below), 1) + " dB " +
+                       (below > 0.0 ? "quieter" : "louder") + " than " + labels[ref] +
+                       " (the best-supported sequence of this recording), so they are not "
                        "this ball (sequence_level_tolerance_db = " +
                        FormatGeneral(o.sequence_level_tolerance_db) + ")",
                    -1,
-                   "nothing to do if another ball or object made them; to analyse them, "
-                   "--start/--end around them"});
+                   below > 0.0
+                       ? "nothing to do if another ball or object made them; to analyse them, "
+                         "--start/--end around them"
+                       : "nothing to do if they ring after a louder impact; to analyse them, "
+                         "--start/--end around them"});
   }
   std::vector<Sequence> kept;
   for (std::size_t s = 0; s < seqs.size(); ++s)

@@ -232,12 +232,15 @@ struct OnsetDetector::NccChunks {
   }
 };
 
-bool OnsetDetector::BuildTemplate(OnsetResult* res, TemplateMatch* m) const {
+bool OnsetDetector::BuildTemplate(OnsetResult* res, double template_onset_s,
+                                  TemplateMatch* m) const {
   const std::vector<float>& w = res->whitened;
   const std::size_t n = w.size();
   std::size_t strongest = 0;
   for (std::size_t i = 1; i < res->onsets.size(); ++i)
     if (res->onsets[i].snr_db > res->onsets[strongest].snr_db) strongest = i;
+  for (std::size_t i = 0; i < res->onsets.size(); ++i)
+    if (res->onsets[i].time_s == template_onset_s) strongest = i;
   m->lead = static_cast<long>(0.1e-3 * rate_hz_) + 1;
   const std::size_t tl = static_cast<std::size_t>(template_len_);
   m->ref_start = std::lround(res->onsets[strongest].time_s * rate_hz_) - m->lead;
@@ -412,7 +415,8 @@ void OnsetDetector::AddBlindCandidates(const std::vector<float>& x, const Templa
 }
 
 void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<long>& window_lo,
-                                 const std::vector<long>& window_hi, OnsetResult* res) const {
+                                 const std::vector<long>& window_hi, double template_onset_s,
+                                 OnsetResult* res) const {
   // The impacts of one ball on one plate look alike: the whitened waveform of the strongest
   // onset is the template; its NCC with the whole whitened signal (FFT overlap-save) scores
   // every onset (Impact::score), times the clear matches and finds impacts the flux missed.
@@ -420,7 +424,7 @@ void OnsetDetector::TemplatePass(const std::vector<float>& x, const std::vector<
   // timed once the chunk holding the last start it reads is there, each chunk searched blind.
   if (res->onsets.empty()) return;
   TemplateMatch m;
-  if (!BuildTemplate(res, &m)) return;
+  if (!BuildTemplate(res, template_onset_s, &m)) return;
   NccChunks chunks(*corr_, res->whitened, res->template_wave, m.hh, Threads());
   auto live = [&](long l) { return chunks.Ncc(static_cast<std::size_t>(l)); };
   const long n = m.n;

@@ -14,7 +14,11 @@
 //      Zhang, Thurber & Rowe 2003, BSSA 93(5), eq. 2) with parabolic interpolation of the AIC
 //      minimum, and gets a timing uncertainty sigma_s from the AIC curvature (AIC ~ -2 log L, so
 //      the 1-sigma half width is where AIC rises by 1) plus a floor;
-//   4. the whitened waveform of the strongest onset is a template: every onset whose normalised
+//   4. onsets the flux missed, where the recorded (not whitened) signal's energy rises above its
+//      own running median + k * MAD, and by at least OnsetOptions::min_rise_db: a soft impact
+//      (rubber: 1-2 ms of contact) sounds in the plate's low modes, which the whitening predicts
+//      away, but it still rises above what rang before;
+//   5. the whitened waveform of the strongest onset is a template: every onset whose normalised
 //      cross-correlation with it reaches template_timing_ncc is timed by the lag of the NCC peak
 //      relative to the template (level-independent and 3-10x more consistent than per-impact AIC
 //      picks, which move with the level and jump on weak onsets); the template's own AIC pick
@@ -45,6 +49,15 @@ struct OnsetOptions {
   double min_novelty_db = 2.5;   // and at least this flux (dB) above the running median
   double median_window_s = 0.3;  // running-median window of the adaptive threshold
   double min_gap_s = 0.0015;     // peaks closer than this: keep the stronger
+  // A second source of onsets, the energy rise of the recorded signal (RawRiseDb, one value per
+  // STFT frame): a soft ball (rubber: 1-2 ms of contact) excites little but the plate's low
+  // modes, which the whitening predicts away, yet its impacts still rise above what rang before.
+  // A rise peak above the rise's own running median + threshold_mads MAD, and at least
+  // min_rise_db above that median, that no flux onset explains (none within min_gap_s) is an onset
+  // too. min_rise_db: the impact's own energy at least 3 times what rang before it (6 dB); the
+  // rise of white noise spreads by ~1 dB (1 ms at 44.1 kHz: 44 samples), so noise alone rarely
+  // reaches it where the MAD rule does not already ask more. 0: no rise onsets.
+  double min_rise_db = 6.0;
   bool refine = true;          // sub-sample timing; false: each onset reported at the centre of its
                                // STFT hop (CoarsenToHop) -- the same onsets, frame-resolution times
   double aic_pre_s = 0.002;    // AIC window before the coarse onset
@@ -106,6 +119,10 @@ bool FindByTemplate(const OnsetResult& result, const MatchTemplate& tpl,
 // [t0_s, t1_s). 0 when the stretch is too short or outside the signal.
 double NccNoiseSpread(const OnsetResult& result, const MatchTemplate& tpl, double t0_s, double t1_s,
                       int max_positions);
+
+// The energy rise of x at t_s (Impact::rise_db), dB: the mean square of the millisecond after
+// t_s over that of [t_s - 3.5 ms, t_s - 0.5 ms) (the guard: the onset's own timing error).
+double RawRiseDb(const std::vector<float>& x, double rate_hz, double t_s);
 
 // Linear predictor a[1..order] (a[0] = 1) of the prediction-error filter
 // e[n] = sum_j a[j] x[n-j], from the autocorrelation r[0..order] by Levinson-Durbin
@@ -181,9 +198,16 @@ class OnsetDetector {
   // whitening.cpp), then
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
   std::vector<double> Novelty(const std::vector<float>& whitened) const;  // flux, dB (novelty.cpp)
-  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // adaptive (peaks.cpp)
+  // Adaptive threshold of a novelty (peaks.cpp): running median + max(mads MAD, floor_db).
+  std::vector<double> Threshold(const std::vector<double>& novelty, double mads,
+                                double floor_db) const;
   double BlockThreshold(const std::vector<double>& novelty, std::size_t centre, std::size_t win,
-                        SlidingSample* window) const;
+                        double mads, double floor_db, SlidingSample* window) const;
+  // The rise onsets (OnsetOptions::min_rise_db) no onset of `flux` explains, refined, with the
+  // samples their AIC windows span appended to *window_lo, *window_hi (onsets.cpp).
+  std::vector<Impact> RiseOnsets(const std::vector<float>& samples, const OnsetResult& res,
+                                 const std::vector<Impact>& flux, std::vector<long>* window_lo,
+                                 std::vector<long>* window_hi) const;
   std::vector<std::size_t> Peaks(const std::vector<double>& novelty,
                                  const std::vector<double>& threshold) const;  // frames (peaks.cpp)
   // AIC refinement and measures at each peak's coarse onset (aic.cpp); *window_lo, *window_hi:
@@ -198,9 +222,12 @@ class OnsetDetector {
   struct NccWindow;
   struct NccChunks;
   struct BlindCandidate;
+  // The template is cut at the onset at template_onset_s (the strongest of the flux's: a rise
+  // onset, a soft impact, is no template for the rest), or, when NaN, the strongest of all.
   void TemplatePass(const std::vector<float>& samples, const std::vector<long>& window_lo,
-                    const std::vector<long>& window_hi, OnsetResult* res) const;
-  bool BuildTemplate(OnsetResult* res, TemplateMatch* m) const;
+                    const std::vector<long>& window_hi, double template_onset_s,
+                    OnsetResult* res) const;
+  bool BuildTemplate(OnsetResult* res, double template_onset_s, TemplateMatch* m) const;
   std::pair<long, long> TimingStarts(const TemplateMatch& m, long lo, long hi, double time_s) const;
   void TimeWithTemplate(const TemplateMatch& m, const std::function<double(long)>& ncc, long lo,
                         long hi, Impact* im) const;

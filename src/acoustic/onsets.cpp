@@ -7,7 +7,6 @@
 #include <limits>
 #include <memory>
 #include <numbers>
-#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -202,17 +201,76 @@ std::vector<Impact> OnsetDetector::RiseOnsets(const std::vector<float>& x, const
   // peaks as the flux's.
   const std::size_t frames = res.novelty_db.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
+  // The windows' mean squares (RiseWindows' windows, clamped alike), their sums slid from frame to
+  // frame and summed anew every kExactFrames frames (the slide's rounding stays ~1e-16 of the
+  // loudest sum, far below the background it is compared with).
+  constexpr std::size_t kExactFrames = 256;
+  const long n = static_cast<long>(x.size());
+  auto sum_squares = [&](long a, long b) {  // four running sums: the adds need not wait
+    a = std::clamp(a, 0L, n), b = std::clamp(b, 0L, n);
+    const float* p = x.data();
+    double e0 = 0.0, e1 = 0.0, e2 = 0.0, e3 = 0.0;
+    long k = a;
+    for (; k + 4 <= b; k += 4) {
+      e0 += static_cast<double>(p[k]) * p[k];
+      e1 += static_cast<double>(p[k + 1]) * p[k + 1];
+      e2 += static_cast<double>(p[k + 2]) * p[k + 2];
+      e3 += static_cast<double>(p[k + 3]) * p[k + 3];
+    }
+    for (; k < b; ++k) e0 += static_cast<double>(p[k]) * p[k];
+    return (e0 + e1) + (e2 + e3);
+  };
+  auto count = [&](long a, long b) {
+    return static_cast<double>(std::max(0L, std::clamp(b, 0L, n) - std::clamp(a, 0L, n)));
+  };
+  const long w_after = std::lround(kRiseAfterS * rate_hz_) + 1;
+  const long w_before = std::lround(kRiseBeforeS * rate_hz_);
+  const long w_guard = std::lround(kRiseGuardS * rate_hz_);
+  const long h = static_cast<long>(hop);
   std::vector<double> after(frames), before(frames), rise(frames);
-  ParallelForGroups(Threads(), frames, kSpectraChunk, [&](std::size_t t0, std::size_t t1) {
-    for (std::size_t t = t0; t < t1; ++t)
-      std::tie(after[t], before[t]) = RiseWindows(x, rate_hz_, static_cast<long>(t * hop));
-  });
+  double sa = 0.0, sb = 0.0;
+  for (std::size_t t = 0; t < frames; ++t) {
+    const long i = static_cast<long>(t) * h;
+    if (t % kExactFrames == 0) {
+      sa = sum_squares(i, i + w_after);
+      sb = sum_squares(i - w_before, i - w_guard);
+    } else {
+      sa += sum_squares(i - h + w_after, i + w_after) - sum_squares(i - h, i);
+      sb += sum_squares(i - h - w_guard, i - w_guard) - sum_squares(i - h - w_before, i - w_before);
+    }
+    const double ca = count(i, i + w_after), cb = count(i - w_before, i - w_guard);
+    after[t] = ca > 0.0 ? std::max(sa, 0.0) / ca : 0.0;
+    before[t] = cb > 0.0 ? std::max(sb, 0.0) / cb : 0.0;
+  }
   // Both windows' power floored by the background (the median of the windows before), as the
   // flux's: silence and digital zeros do not turn tiny increases into large rises.
-  const double floor_power = std::max(UpperMedian(before), 1e-30);
+  std::vector<double> sample;  // every fourth frame, as the flux threshold's medians
+  for (std::size_t t = 0; t < frames; t += 4) sample.push_back(before[t]);
+  const double floor_power = std::max(UpperMedian(std::move(sample)), 1e-30);
   for (std::size_t t = 0; t < frames; ++t)
     rise[t] = 10.0 * std::log10((after[t] + floor_power) / (before[t] + floor_power));
-  const std::vector<double> thr = Threshold(rise, options_.threshold_mads, options_.min_rise_db);
+  // Peaks: local maxima of at least min_rise_db (absolute: the impact's own energy at least three
+  // times what rang before), above their own running median + threshold_mads MAD (the median and
+  // MAD over median_window_s around them, every fourth frame, as the flux's threshold; computed at
+  // these maxima only), stronger ones kept within min_gap_s.
+  const std::size_t win = std::max<std::size_t>(
+      16, static_cast<std::size_t>(options_.median_window_s * rate_hz_ / static_cast<double>(hop)));
+  const std::size_t gap =
+      static_cast<std::size_t>(options_.min_gap_s * rate_hz_ / static_cast<double>(hop));
+  std::vector<std::size_t> peaks;
+  SlidingSample around;
+  for (std::size_t t = 1; t + 1 < frames; ++t) {
+    if (rise[t] < options_.min_rise_db || rise[t] < rise[t - 1] || rise[t] <= rise[t + 1]) continue;
+    const std::size_t lo = t > win / 2 ? t - win / 2 : 0;
+    around.Set(rise, lo, std::min(frames, lo + win), 4);
+    const double med = around.Median();
+    if (rise[t] <= med + options_.threshold_mads * 1.4826 * around.Mad(med)) continue;
+    if (!peaks.empty() && t - peaks.back() <= gap) {
+      if (rise[t] > rise[peaks.back()]) peaks.back() = t;
+      continue;
+    }
+    peaks.push_back(t);
+  }
   std::vector<double> known;
   for (const Impact& im : flux) known.push_back(im.time_s);
   std::sort(known.begin(), known.end());
@@ -227,7 +285,7 @@ std::vector<Impact> OnsetDetector::RiseOnsets(const std::vector<float>& x, const
   const std::size_t post =
       std::max<std::size_t>(nw / 2, static_cast<std::size_t>(options_.aic_post_s * rate_hz_));
   std::vector<Impact> out;
-  for (std::size_t t : Peaks(rise, thr)) {
+  for (std::size_t t : peaks) {
     // The rise peaks where its millisecond starts at the onset: the AIC window around it.
     const std::size_t centre = t * hop + hop;
     if (explained(static_cast<double>(t * hop) / rate_hz_)) continue;

@@ -8,7 +8,7 @@
 //                      max_sigma_fraction of its shorter interval) that it carries no timing;
 //   low_snr_removed    a member below min_snr_db (local SNR of the whitened onset, timing.hpp);
 //   phantom_removed    a member far quieter than the members after it, or a whole sequence far
-//                      quieter than another one at the same impact speed (below);
+//                      quieter or louder than the best-supported one at the same speed (below);
 //   not_shrinking      a sequence whose intervals do not shrink on average (removed).
 // Removing a member from inside a sequence leaves a gap of two flights: it is flagged like a
 // missed impact (Sequence::missed_after).
@@ -25,9 +25,11 @@
 // recording (one ball, one surface, one microphone), the level at a given speed is the same:
 // with v proportional to the preceding flight time T (v = g T / 2 without drag),
 // C = median over members of (level_dB - 20 log10 T) is a sequence's level at unit speed; a
-// sequence whose C lies more than sequence_level_tolerance_db below the loudest sequence's is
-// not this ball (handling taps before the drop). The tolerances are four times the largest
-// scatter seen on real recordings; phantoms seen so far are 30-50 dB below.
+// sequence whose C lies more than sequence_level_tolerance_db from the best-supported sequence's
+// (the largest sum of member weights, CandidateWeight) is not this ball: below it, handling taps
+// before the drop; above it, a chain of re-triggers in a loud impact's ringing (it takes that
+// impact's level at the speed of millisecond flights). The tolerances are four times the largest
+// scatter seen on real recordings; phantoms seen so far are 30-50 dB away.
 //
 //   std::vector<Warning> w = EnforcePlausibility(&sequences, PlausibilityOptions{});
 #pragma once
@@ -47,7 +49,7 @@ struct PlausibilityOptions {
   double max_sigma_fraction = 0.1;
   double level_tolerance_db = 20.0;           // earlier member vs later members
   int level_reference_members = 3;            // how many later members set the reference
-  double sequence_level_tolerance_db = 20.0;  // sequence vs the loudest sequence, same speed
+  double sequence_level_tolerance_db = 20.0;  // vs the best-supported sequence, same speed
   // Largest geometric mean of the interval ratios dt_k / dt_(k-1) of a sequence's regular steps
   // (MeanIntervalRatio): every impact loses energy, and the most elastic pair measured (a steel
   // ball on an amorphous-metal plate, e ~ 0.985) still shrinks its intervals by 1.5 % a bounce;

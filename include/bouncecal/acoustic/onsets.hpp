@@ -52,11 +52,11 @@ struct OnsetOptions {
   // A second source of onsets, the energy rise of the recorded signal (RawRiseDb, one value per
   // STFT frame): a soft ball (rubber: 1-2 ms of contact) excites little but the plate's low
   // modes, which the whitening predicts away, yet its impacts still rise above what rang before.
-  // A rise peak above the rise's own running median + threshold_mads MAD, and at least
-  // min_rise_db above that median, that no flux onset explains (none within min_gap_s) is an onset
-  // too. min_rise_db: the impact's own energy at least 3 times what rang before it (6 dB); the
-  // rise of white noise spreads by ~1 dB (1 ms at 44.1 kHz: 44 samples), so noise alone rarely
-  // reaches it where the MAD rule does not already ask more. 0: no rise onsets.
+  // A rise peak of at least min_rise_db and above the rise's own running median + threshold_mads
+  // MAD, that no flux onset explains (none within min_gap_s), is an onset too. min_rise_db: the
+  // impact's own energy at least 3 times what rang before it (6 dB); the rise of white noise
+  // spreads by ~1 dB (1 ms at 44.1 kHz: 44 samples), so noise alone rarely reaches it where the
+  // MAD rule does not already ask more. 0: no rise onsets.
   double min_rise_db = 6.0;
   bool refine = true;          // sub-sample timing; false: each onset reported at the centre of its
                                // STFT hop (CoarsenToHop) -- the same onsets, frame-resolution times

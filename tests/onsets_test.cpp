@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <string>
 #include <thread>
@@ -442,6 +443,19 @@ TEST(Onsets, ShortAndEmptyInputGiveNoOnsets) {
 
 // ---- the rise onsets (OnsetOptions::min_rise_db) ---------------------------------------------
 
+// `seconds` of white noise (RMS noise_rms, from `seed`) at rate_hz plus sound(t).
+std::vector<float> NoiseAnd(double rate_hz, double seconds, unsigned seed, double noise_rms,
+                            const std::function<double(double)>& sound) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, noise_rms);
+  std::vector<float> x(static_cast<std::size_t>(seconds * rate_hz));
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double t = static_cast<double>(i) / rate_hz;
+    x[i] = static_cast<float>(g(rng) + sound(t));
+  }
+  return x;
+}
+
 // A soft ball's impacts excite little but the plate's low modes, which the whole recording's
 // whitening predicts away: on synth's rubber ball on wood (1.4-ms contact) the flux and the
 // template find half of the impacts 20 dB or more above the room (measured, seeds 1-8: 0.47-0.53
@@ -488,19 +502,15 @@ TEST(RiseOnsets, TheFloorIsPinnedToAFactorOfTwo) {
     starts.push_back(0.2 + 0.25 * static_cast<double>(k));
     gains.push_back(k % 2 ? loud[k / 2] : quiet[k / 2]);
   }
-  std::mt19937 rng(5);
-  std::normal_distribution<double> g(0.0, kNoise);
-  std::vector<float> x(static_cast<std::size_t>(3.3 * kRate));
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    const double t = static_cast<double>(i) / kRate;
-    double v = g(rng);
+  const std::vector<float> x = NoiseAnd(kRate, 3.3, 5, kNoise, [&](double t) {
+    double v = 0.0;
     for (std::size_t k = 0; k < starts.size(); ++k) {
       const double u = (t - starts[k]) / kLen;
       if (u >= 0.0 && u < 1.0)
         v += gains[k] * kNoise * std::sin(M_PI * u) * std::sin(2.0 * M_PI * 2000.0 * t);
     }
-    x[i] = static_cast<float>(v);
-  }
+    return v;
+  });
   auto count = [&](double min_rise_db, double gain) {
     OnsetOptions o;
     o.min_rise_db = min_rise_db;
@@ -561,12 +571,8 @@ TEST(RiseOnsets, AreTimedWhereTheRecordingRises) {
 TEST(RiseOnsets, RiseAboveTheRingingsEnvelopeOverTwentyMilliseconds) {
   constexpr double kRate = 48000.0, kNoise = 1e-4;
   const std::vector<double> bursts = {0.3, 0.7, 1.1, 1.5}, delays = {0.015, 0.030, 0.015, 0.030};
-  std::mt19937 rng(9);
-  std::normal_distribution<double> g(0.0, kNoise);
-  std::vector<float> x(static_cast<std::size_t>(1.9 * kRate));
-  for (std::size_t i = 0; i < x.size(); ++i) {
-    const double t = static_cast<double>(i) / kRate;
-    double v = g(rng);
+  const std::vector<float> x = NoiseAnd(kRate, 1.9, 9, kNoise, [&](double t) {
+    double v = 0.0;
     for (std::size_t k = 0; k < bursts.size(); ++k) {
       if (t >= bursts[k])
         v += 0.3 * std::exp(-(t - bursts[k]) / 0.003) * std::sin(2.0 * M_PI * 2000.0 * t);
@@ -574,8 +580,8 @@ TEST(RiseOnsets, RiseAboveTheRingingsEnvelopeOverTwentyMilliseconds) {
       if (u >= 0.0 && u < 1.0)
         v += 0.3 * 0.316 * std::sin(M_PI * u) * std::sin(2.0 * M_PI * 2000.0 * t);
     }
-    x[i] = static_cast<float>(v);
-  }
+    return v;
+  });
   OnsetOptions o;
   o.min_novelty_db = 1e6;
   o.template_threshold = 2.0;

@@ -197,8 +197,7 @@ std::vector<Impact> OnsetDetector::RiseOnsets(const std::vector<float>& x, const
                                               const std::vector<Impact>& flux,
                                               std::vector<long>* window_lo,
                                               std::vector<long>* window_hi) const {
-  // The rise at the start of every STFT frame (the novelty's grid), its adaptive threshold and
-  // peaks as the flux's.
+  // The rise at the start of every STFT frame (the novelty's grid), then its peaks.
   const std::size_t frames = res.novelty_db.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
   // The windows' mean squares (RiseWindows' windows, clamped alike), their sums slid from frame to
@@ -242,8 +241,9 @@ std::vector<Impact> OnsetDetector::RiseOnsets(const std::vector<float>& x, const
     after[t] = ca > 0.0 ? std::max(sa, 0.0) / ca : 0.0;
     before[t] = cb > 0.0 ? std::max(sb, 0.0) / cb : 0.0;
   }
-  // Both windows' power floored by the background (the median of the windows before), as the
-  // flux's: silence and digital zeros do not turn tiny increases into large rises.
+  // Both windows' power floored by the background (the median of the windows before, over every
+  // fourth frame), as the flux's: silence and digital zeros do not turn tiny increases into large
+  // rises.
   std::vector<double> sample;  // every fourth frame, as the flux threshold's medians
   for (std::size_t t = 0; t < frames; t += 4) sample.push_back(before[t]);
   const double floor_power = std::max(UpperMedian(std::move(sample)), 1e-30);

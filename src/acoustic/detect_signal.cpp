@@ -28,7 +28,12 @@ void MoveMembersToTheirAttacks(const std::vector<Impact>& candidates, const Trac
       // The strongest attack among the candidates whose sound the member's rise window holds
       // (begun 0.5-3.5 ms before it: RawRiseDb's window before the onset, past its guard).
       const Impact* attack = nullptr;
-      for (const Impact& c : candidates) {
+      // (The candidates are in time order: only those of the window are looked at.)
+      const auto first =
+          std::lower_bound(candidates.begin(), candidates.end(), m.time_s - 2.0 * kAttackReachS,
+                           [](const Impact& c, double t) { return c.time_s < t; });
+      for (auto c_it = first; c_it != candidates.end() && c_it->time_s < m.time_s; ++c_it) {
+        const Impact& c = *c_it;
         const double before = m.time_s - c.time_s;
         if (before < 5e-4 || before > kAttackReachS || is_member(c.time_s)) continue;
         if (c.rise_db < kAttackRiseDb ||

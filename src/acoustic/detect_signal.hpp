@@ -32,6 +32,7 @@ struct SignalDetection {
 // peaks, 3.06 ms late, chosen by the tracker over the attacks when a longer tail made the ratios
 // smoother that way; the hand marks are at the attacks.)
 constexpr double kAttackReachS = 0.0035, kAttackRiseDb = 6.0, kAttackLevelDb = 6.0;
+// candidates: sorted by time_s (as the onset detector gives them).
 void MoveMembersToTheirAttacks(const std::vector<Impact>& candidates, const TrackOptions& to,
                                std::vector<Sequence>* sequences);
 

@@ -35,19 +35,18 @@ double RobustRms(const std::vector<float>& x) {
 // before (beyond a guard for the onset's own timing error) holds the decaying sound of what came
 // earlier, even at a low plate mode's period.
 constexpr double kRiseAfterS = 0.001, kRiseBeforeS = 0.0035, kRiseGuardS = 0.0005;
-// Mean squares of x over the rise's two windows at sample i: {after, before}.
-std::pair<double, double> RiseWindows(const std::vector<float>& x, double rate_hz, long i) {
+// The mean square of x over [a, b) (clamped to x; 0 when empty).
+double MeanSquare(const std::vector<float>& x, long a, long b) {
   const long n = static_cast<long>(x.size());
-  auto mean_square = [&](long a, long b) {
-    a = std::clamp(a, 0L, n), b = std::clamp(b, 0L, n);
-    double e = 0.0;
-    for (long k = a; k < b; ++k)
-      e += static_cast<double>(x[static_cast<std::size_t>(k)]) * x[static_cast<std::size_t>(k)];
-    return b > a ? e / static_cast<double>(b - a) : 0.0;
-  };
-  return {
-      mean_square(i, i + std::lround(kRiseAfterS * rate_hz) + 1),
-      mean_square(i - std::lround(kRiseBeforeS * rate_hz), i - std::lround(kRiseGuardS * rate_hz))};
+  a = std::clamp(a, 0L, n), b = std::clamp(b, 0L, n);
+  double e = 0.0;
+  for (long k = a; k < b; ++k)
+    e += static_cast<double>(x[static_cast<std::size_t>(k)]) * x[static_cast<std::size_t>(k)];
+  return b > a ? e / static_cast<double>(b - a) : 0.0;
+}
+// The mean square of the millisecond after sample i (the rise's window after the onset).
+double AfterWindow(const std::vector<float>& x, double rate_hz, long i) {
+  return MeanSquare(x, i, i + std::lround(kRiseAfterS * rate_hz) + 1);
 }
 
 // Whether the millisecond after sample i holds more energy than every millisecond of the
@@ -59,11 +58,11 @@ std::pair<double, double> RiseWindows(const std::vector<float>& x, double rate_h
 constexpr double kRingingS = 0.02;
 bool AboveRecentRinging(const std::vector<float>& x, double rate_hz, long i) {
   const long w = std::lround(kRiseAfterS * rate_hz);
-  const double after = RiseWindows(x, rate_hz, i).first;
+  const double after = AfterWindow(x, rate_hz, i);
   const long step = std::max(1L, w / 4);
   for (long j = i - std::lround(kRingingS * rate_hz);
        j + w <= i - std::lround(kRiseGuardS * rate_hz); j += step)
-    if (RiseWindows(x, rate_hz, j).first >= after) return false;
+    if (AfterWindow(x, rate_hz, j) >= after) return false;
   return true;
 }
 
@@ -76,7 +75,10 @@ int NearestPowerOfTwo(double v) {
 }  // namespace
 
 double RawRiseDb(const std::vector<float>& x, double rate_hz, double t_s) {
-  const auto [post, pre] = RiseWindows(x, rate_hz, std::lround(t_s * rate_hz));
+  const long i = std::lround(t_s * rate_hz);
+  const double post = AfterWindow(x, rate_hz, i);
+  const double pre = MeanSquare(x, i - std::lround(kRiseBeforeS * rate_hz),
+                                i - std::lround(kRiseGuardS * rate_hz));
   return 10.0 * std::log10((post + 1e-30) / (pre + 1e-30));
 }
 
@@ -158,7 +160,7 @@ OnsetResult OnsetDetector::DetectRefined(const std::vector<float>& x) const {
   res.noise_rms = RobustRms(res.whitened);
   if (res.whitened.size() < static_cast<std::size_t>(window_ + hop_)) return res;
   res.novelty_db = Novelty(res.whitened);
-  res.threshold_db = Threshold(res.novelty_db, options_.threshold_mads, options_.min_novelty_db);
+  res.threshold_db = Threshold(res.novelty_db);
   const std::vector<std::size_t> peaks = Peaks(res.novelty_db, res.threshold_db);
   std::vector<long> window_lo, window_hi;
   res.onsets = RefinePeaks(x, peaks, res, &window_lo, &window_hi);
@@ -200,7 +202,7 @@ std::vector<Impact> OnsetDetector::RiseOnsets(const std::vector<float>& x, const
   // The rise at the start of every STFT frame (the novelty's grid), then its peaks.
   const std::size_t frames = res.novelty_db.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
-  // The windows' mean squares (RiseWindows' windows, clamped alike), their sums slid from frame to
+  // The windows' mean squares (RawRiseDb's windows, clamped alike), their sums slid from frame to
   // frame and summed anew every kExactFrames frames (the slide's rounding stays ~1e-16 of the
   // loudest sum, far below the background it is compared with).
   constexpr std::size_t kExactFrames = 256;

@@ -96,11 +96,11 @@ double SlidingSample::Mad(double centre) const {
   return d;
 }
 
-// The threshold at frame c: median + max(mads MAD, floor_db) of the novelty
+// The threshold at frame c: median + max(threshold_mads MAD, min_novelty_db) of the novelty
 // over the `win` frames around c (every fourth frame). `window` slides from the previous
 // block's frames (SlidingSample: the same median and MAD as selecting from all of them).
 double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t c, std::size_t win,
-                                     double mads, double floor_db, SlidingSample* window) const {
+                                     SlidingSample* window) const {
   const std::size_t frames = nov.size();
   const std::size_t lo = c > win / 2 ? c - win / 2 : 0;
   const std::size_t hi = std::min(frames, lo + win);
@@ -109,11 +109,10 @@ double OnsetDetector::BlockThreshold(const std::vector<double>& nov, std::size_t
   window->Set(nov, lo, hi, 4);
   const double med = window->Median();
   const double mad = 1.4826 * window->Mad(med);
-  return med + std::max(mads * mad, floor_db);
+  return med + std::max(options_.threshold_mads * mad, options_.min_novelty_db);
 }
 
-std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov, double mads,
-                                             double floor_db) const {
+std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov) const {
   // Running median + k * MAD, evaluated on blocks and interpolated.
   const std::size_t frames = nov.size();
   const std::size_t hop = static_cast<std::size_t>(hop_);
@@ -126,7 +125,7 @@ std::vector<double> OnsetDetector::Threshold(const std::vector<double>& nov, dou
   ParallelForGroups(Threads(), nblk, kThresholdPart, [&](std::size_t b0, std::size_t b1) {
     SlidingSample window;
     for (std::size_t b = b0; b < b1; ++b)
-      blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, mads, floor_db, &window);
+      blk_thr[b] = BlockThreshold(nov, b * blk + blk / 2, win, &window);
   });
   std::vector<double> thr(frames);
   ParallelForGroups(Threads(), frames, kSpectraChunk, [&](std::size_t t0, std::size_t t1) {

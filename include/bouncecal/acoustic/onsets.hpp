@@ -198,11 +198,9 @@ class OnsetDetector {
   // whitening.cpp), then
   OnsetResult DetectRefined(const std::vector<float>& samples) const;
   std::vector<double> Novelty(const std::vector<float>& whitened) const;  // flux, dB (novelty.cpp)
-  // Adaptive threshold of a novelty (peaks.cpp): running median + max(mads MAD, floor_db).
-  std::vector<double> Threshold(const std::vector<double>& novelty, double mads,
-                                double floor_db) const;
+  std::vector<double> Threshold(const std::vector<double>& novelty) const;  // adaptive (peaks.cpp)
   double BlockThreshold(const std::vector<double>& novelty, std::size_t centre, std::size_t win,
-                        double mads, double floor_db, SlidingSample* window) const;
+                        SlidingSample* window) const;
   // The rise onsets (OnsetOptions::min_rise_db) no onset of `flux` explains, refined, with the
   // samples their AIC windows span appended to *window_lo, *window_hi (onsets.cpp).
   std::vector<Impact> RiseOnsets(const std::vector<float>& samples, const OnsetResult& res,

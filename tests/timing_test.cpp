@@ -427,7 +427,7 @@ TEST(Timing, StartInvarianceAtFiveOffsets) {
 }
 
 // A member is timed by the template down to NCC min_template_ncc = 0.1, by its own AIC pick only
-// below (measured on 47 files that are not the scoreboard's: members of NCC 0.10-0.20 timed by
+// below (measured on 42 files that are not the scoreboard's: members of NCC 0.10-0.20 timed by
 // AIC were 480-530 us off in the median, 6 of 24 beyond 1 ms; by the template 32-97 us, none;
 // at 0.2 the AIC took every one of them). Quiet copies in loud noise give members of NCC
 // 0.1-0.2: they are timed by the template, and within 3 sigma. (Below 0.1 no member occurs,

@@ -139,7 +139,7 @@ struct TimingOptions {
   double noise_guard_s = 0.001;   // ... ending this long before it
   double signal_window_s = 5e-4;  // SNR: signal rms over this long after the onset
   double level_window_s = 0.003;  // Impact::amplitude: peak |x| over this long after the onset
-  // Below: AIC timing (sigma: see the cycle-slip model). Measured on 47 files that are not the
+  // Below: AIC timing (sigma: see the cycle-slip model). Measured on 42 files that are not the
   // scoreboard's: members of NCC 0.10-0.20 were 480-530 us off (median) by AIC, 32-97 us by the
   // template; at 0.2 the AIC took them. No member had NCC below 0.1 (noise alone reaches 0.15).
   double min_template_ncc = 0.1;

@@ -101,11 +101,13 @@ class Scene {
     double hh = 0.0, nn = 0.0;
     for (long j = 0; j < kTemplateSamples; ++j) {
       hh += h_[static_cast<std::size_t>(j)] * h_[static_cast<std::size_t>(j)];
-      nn += static_cast<double>(w_[static_cast<std::size_t>(l + j)]) * w_[static_cast<std::size_t>(l + j)];
+      nn += static_cast<double>(w_[static_cast<std::size_t>(l + j)]) *
+            w_[static_cast<std::size_t>(l + j)];
     }
     const double a = c * std::sqrt(nn / hh / (1.0 - c * c));
     for (long j = 0; j < kTemplateSamples; ++j)
-      w_[static_cast<std::size_t>(l + j)] += static_cast<float>(a * h_[static_cast<std::size_t>(j)]);
+      w_[static_cast<std::size_t>(l + j)] +=
+          static_cast<float>(a * h_[static_cast<std::size_t>(j)]);
   }
   void PutAll(const std::vector<double>& t) {
     for (double x : t) Put(x);

@@ -318,7 +318,7 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
   const nlohmann::json d = nlohmann::json::parse(det.out);
   const size_t expected_impacts =
       d["sequences"][d["chosen_sequences"][0].get<int>()]["impacts"].size();
-  ASSERT_EQ(expected_impacts, 73u);  // README worked example
+  ASSERT_EQ(expected_impacts, 74u);  // README worked example
 
   const Rendered r = Render(dir, html);
   ASSERT_EQ(BodyAttr(r.dom, "data-report-state"), "drawn") << BodyAttr(r.dom, "data-report-error");
@@ -343,9 +343,9 @@ TEST(ReportBrowser, BundledRecordingDrawsEveryChartWithEveryImpact) {
     // Axes, grid and data: measured 9-35 % of each chart's area; an empty canvas is 0 %.
     EXPECT_GT(n.non_white, n.total / 50) << name << ": " << n.non_white << " of " << n.total;
   }
-  // The impact triangles' red (#d62728) is on the waveform: 73 triangles of radius 6 px.
+  // The impact triangles' red (#d62728) is on the waveform: 74 triangles of radius 6 px.
   const PixelCount red = CountPixels(r.shot, canvases.at("waveform-0"), 0xd6, 0x27, 0x28);
-  EXPECT_GT(red.near_color, 73 * 20) << red.near_color;
+  EXPECT_GT(red.near_color, 74 * 20) << red.near_color;
   // The fitted curve's green (#2ca02c) is on the restitution chart.
   // Measured 499 px on the bundled recording (66 impacts); 0 without the curve.
   EXPECT_GT(CountPixels(r.shot, canvases.at("restitution"), 0x2c, 0xa0, 0x2c).near_color, 250);
@@ -515,7 +515,7 @@ TEST(ReportFigures, SvgHasOneTrianglePerImpactAndPngIsAnImage) {
   const std::regex tri(R"(<use xlink:href='#gpPt8'[^>]*color='rgb\(214,\s*39,\s*40\)')");
   const auto n =
       std::distance(std::sregex_iterator(text.begin(), text.end(), tri), std::sregex_iterator());
-  EXPECT_EQ(n, 73 + 1);
+  EXPECT_EQ(n, 74 + 1);
   for (const char* title : {"intervals per bounce", "fit residuals",
                             "restitution against impact speed", "kinetic energy at impact"}) {
     EXPECT_NE(text.find(title), std::string::npos) << title;
@@ -543,7 +543,7 @@ TEST(ReportCli, CalibrateReportCarriesTheFitOfTheParameterFile) {
   const nlohmann::json p = nlohmann::json::parse(Slurp(params));
   EXPECT_EQ(data["fit"]["law"]["parameters"]["A"]["value"], p["law"]["parameters"]["A"]["value"]);
   EXPECT_EQ(data["fit"]["law"]["parameters"]["A"]["sigma"], p["law"]["parameters"]["A"]["sigma"]);
-  EXPECT_EQ(data["recordings"][0]["impacts"].size(), 73u);
+  EXPECT_EQ(data["recordings"][0]["impacts"].size(), 74u);
   // An existing report is refused before the fit (and the parameter file is not written).
   const auto again =
       RunCommand(BOUNCECAL_BINARY, "calibrate " + kFlac + " --scene " + kScene + " -o " +

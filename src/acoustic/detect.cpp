@@ -29,8 +29,8 @@ void FlagWarnings(const std::vector<Sequence>& seqs, std::vector<Warning>* out) 
                           " (t = " + FormatFixed(q.impacts[static_cast<std::size_t>(k)].time_s, 4) +
                           " s); its interval is about two expected ones",
                       k,
-                      "listen to the impacts kept (detect --click-track FILE.wav); a quiet bounce "
-                      "may need a lower --min-snr-db"});
+                      "listen to the impacts kept (detect --click-track FILE.wav); a bounce heard "
+                      "there but not kept can be added in an --impacts file (detect --json)"});
     for (int k : q.irregular_after) {
       const auto& im = q.impacts;
       const std::size_t j = static_cast<std::size_t>(k);
@@ -165,8 +165,8 @@ bool DetectOptions::IsValid(std::string* error) const {
   if (threads < 0 || threads > 256)
     return fail("DetectOptions::threads = " + std::to_string(threads) +
                 ": must be 0 (automatic) to 256");
-  if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
-    return fail("DetectOptions::min_snr_db = " + FormatGeneral(min_snr_db) +
+  if (min_snr_db && (!std::isfinite(*min_snr_db) || std::fabs(*min_snr_db) > 120.0))
+    return fail("DetectOptions::min_snr_db = " + FormatGeneral(*min_snr_db) +
                 ": must be in [-120, 120] dB");
   return true;
 }

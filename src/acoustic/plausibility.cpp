@@ -81,8 +81,8 @@ bool PlausibilityOptions::IsValid(std::string* error) const {
     if (error) *error = m;
     return false;
   };
-  if (!std::isfinite(min_snr_db) || min_snr_db < -120.0 || min_snr_db > 120.0)
-    return fail("PlausibilityOptions::min_snr_db = " + FormatGeneral(min_snr_db) +
+  if (min_snr_db && (!std::isfinite(*min_snr_db) || std::fabs(*min_snr_db) > 120.0))
+    return fail("PlausibilityOptions::min_snr_db = " + FormatGeneral(*min_snr_db) +
                 ": must be in [-120, 120] dB");
   if (!(max_sigma_fraction > 0.0) || max_sigma_fraction > 1.0)
     return fail("PlausibilityOptions::max_sigma_fraction = " + FormatGeneral(max_sigma_fraction) +
@@ -165,15 +165,16 @@ std::vector<Warning> RemoveUntimedMembers(Sequence* s, const PlausibilityOptions
 std::vector<Warning> RemoveLowSnrMembers(Sequence* s, const PlausibilityOptions& o,
                                          const std::string& label) {
   std::vector<Warning> out;
+  if (!o.min_snr_db) return out;  // no cut (the default: detect.hpp says why)
   std::vector<bool> drop(s->impacts.size(), false);
   for (std::size_t k = 0; k < s->impacts.size(); ++k) {
     const Impact& i = s->impacts[k];
-    if (i.snr_db >= o.min_snr_db) continue;
+    if (i.snr_db >= *o.min_snr_db) continue;
     drop[k] = true;
     out.push_back({"low_snr_removed",
                    label + ": the impact at t = " + FormatFixed(i.time_s, 4) +
                        " s was removed: SNR " + FormatFixed(i.snr_db, 1) +
-                       " dB is below min_snr_db = " + FormatGeneral(o.min_snr_db) + " dB",
+                       " dB is below min_snr_db = " + FormatGeneral(*o.min_snr_db) + " dB",
                    -1,
                    "to keep quieter impacts lower --min-snr-db (check them with detect "
                    "--click-track FILE.wav)"});

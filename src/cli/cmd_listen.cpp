@@ -291,7 +291,7 @@ void RegisterListen(CLI::App& app) {
   sub->add_option("--channel", args->channel, "which channel to listen to: N (0-based) or mix")
       ->capture_default_str();
   sub->add_option("--min-snr-db", args->min_snr_db,
-                  "remove sequence members below this local SNR (dB; default -3)");
+                  "remove sequence members below this local SNR (dB; default: no cut)");
   AddOutputOption(sub, "--take", &args->take, "keep the stream as this file (.flac or .wav)");
   sub->add_flag("--force", args->force, "replace an existing --take file");
   AddSceneFlags(sub, &args->scene, /*with_law=*/false);

@@ -22,7 +22,7 @@ void AddDetectFlags(CLI::App* sub, DetectFlags* f) {
                   "(0-based)")
       ->capture_default_str();
   sub->add_option("--min-snr-db", f->min_snr_db,
-                  "remove sequence members below this local SNR (dB; default -3)");
+                  "remove sequence members below this local SNR (dB; default: no cut)");
   sub->add_option("--impacts", f->impacts,
                   "impact times from FILE instead of detection (detect --json output, CSV with a "
                   "time_s column, Audacity labels, or one time per line); one per recording");

@@ -170,8 +170,8 @@ Flights FlightStage(const Sequence& sequence, const Scene& scene, const Analysis
            "interval " + std::to_string(k) + "-" + std::to_string(k + 1) +
                ": an impact seems missing; speeds and e around it are not given",
            static_cast<int>(k),
-           "listen to the impacts kept (detect --click-track FILE.wav); a quiet bounce may need "
-           "a lower --min-snr-db"});
+           "listen to the impacts kept (detect --click-track FILE.wav); a bounce heard there but "
+           "not kept can be added in an --impacts file (detect --json)"});
       continue;
     }
     const double flight_time = interval - f.tau[k];

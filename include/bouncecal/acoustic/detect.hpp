@@ -66,15 +66,16 @@ struct DetectOptions {
   // seconds from the start of the file.
   double start_s = 0.0;
   std::optional<double> end_s;
-  // Members below this local SNR (timing.hpp: rms of the whitened onset over the robust noise
-  // floor before it) are removed (plausibility.hpp). Chosen on the synthetic corpus (8 seeds per
-  // preset): the lowest true impact is at -2.2 dB; 0 dB removed 19 of 1715 true impacts (the
-  // soft rubber ball's slow attacks: its recall fell from 0.52 to 0.40). Noise alone gives
-  // 0 +- 1.2 dB, so this removes only members with no onset at all. Since the guided looks follow
-  // tails into a plate's ringing (whose decay is the "noise" before a member) true members lie
-  // lower: on 42 files off the scoreboard the lowest of 4887 is at -7.9 dB, and -3 dB removed 68
-  // members, every one a true impact (docs/detection-scoreboard.md; issue 29: to revisit).
-  double min_snr_db = -3.0;
+  // When set, members below this local SNR (timing.hpp: rms of the whitened onset over the robust
+  // noise floor before it) are removed (plausibility.hpp, low_snr_removed). Unset by default: no
+  // cut. Reason (measured): noise with no onset gives 0 +- 1.2 dB, so a cut below 0 dB never
+  // removes a member without an onset in steady noise; below it lie members whose "noise" is the
+  // decay of the impact before (a plate's ringing, a tail). On 42 files off the scoreboard, of
+  // the members below the former -3 dB cut 55 are true impacts and 1 is not; on the scoreboard
+  // all are true (docs/detection-scoreboard.md). A member's evidence is its onset peak, guided
+  // look p-value and template NCC, not this level. Set it (--min-snr-db 12) to keep only clear
+  // impacts.
+  std::optional<double> min_snr_db;
   // Recordings (windows) longer than this are detected in blocks of at most this length (and at
   // most 2^24 frames: 44 s at 384 kHz), cut at the quietest moment of each block's last quarter
   // (between drops), so that memory stays bounded whatever the length. Shorter ones are detected

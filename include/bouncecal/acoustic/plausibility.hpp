@@ -6,7 +6,8 @@
 // with coded warnings:
 //   sigma_removed      a member whose timing sigma is not finite or so large (above
 //                      max_sigma_fraction of its shorter interval) that it carries no timing;
-//   low_snr_removed    a member below min_snr_db (local SNR of the whitened onset, timing.hpp);
+//   low_snr_removed    a member below min_snr_db, when set (local SNR of the whitened onset,
+//                      timing.hpp);
 //   phantom_removed    a member far quieter than the members after it, or a whole sequence far
 //                      quieter or louder than the best-supported one at the same speed (below);
 //   not_shrinking      a sequence whose intervals do not shrink on average (removed).
@@ -34,6 +35,7 @@
 //   std::vector<Warning> w = EnforcePlausibility(&sequences, PlausibilityOptions{});
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -43,7 +45,7 @@
 namespace bouncecal {
 
 struct PlausibilityOptions {
-  double min_snr_db = -3.0;  // members below are removed (detect.hpp says why -3 dB)
+  std::optional<double> min_snr_db;  // when set, members below are removed (detect.hpp: unset)
   // A member whose sigma exceeds this fraction of its shorter interval says nothing about e
   // (sigma_e / e ~ 2 sigma / T = 20 %): removed.
   double max_sigma_fraction = 0.1;

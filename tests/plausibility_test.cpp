@@ -338,7 +338,8 @@ TEST(Trust, TailMembersInARingingPlateAreKeptWhateverTheirLocalSnr) {
     cut.min_snr_db = -3.0;
     const Outcome c = RunDetect(a, cut);
     ASSERT_EQ(c.code, ErrorCode::kOk) << c.message;
-    removed += static_cast<int>(o.result.main().impacts.size() - c.result.main().impacts.size());
+    removed += static_cast<int>(o.result.main().impacts.size()) -
+               static_cast<int>(c.result.main().impacts.size());
   }
   EXPECT_GE(below, 2);
   EXPECT_GE(removed, 2);

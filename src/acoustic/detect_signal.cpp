@@ -87,8 +87,11 @@ SignalDetection DetectInSignal(const std::vector<float>& x, double rate_hz,
   to.min_sequence_impacts = options.min_sequence_impacts;
   out.sequences = TrackSequences(out.candidates, duration_s, to);
   MoveMembersToTheirAttacks(out.candidates, to, &out.sequences);
-  if (options.guided_search)
-    ExtendByTemplate(onsets, x, duration_s, to, GuidedOptions{}, &out.sequences);
+  if (options.guided_search) {
+    GuidedOptions go;
+    go.lpc_order = options.lpc_order;
+    ExtendByTemplate(onsets, x, duration_s, to, go, &out.sequences);
+  }
 
   TimingOptions tim;
   tim.lpc_order = options.lpc_order;

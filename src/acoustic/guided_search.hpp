@@ -9,8 +9,12 @@
 // the chance that noise alone ranks as well somewhere in that window. A match joins when its own
 // p-value is small, inside a run of looks whose combined p-value (Fisher) noise alone rarely
 // reaches. The tail stops at its first unheard impact (past it the flight the looks were made from
-// spans two bounces) or where no run is significant: the noise won or the ball stopped. Each rule
-// is pinned to a factor of 2 by tests/guided_rules_test.cpp.
+// spans two bounces) or where no run is significant: the noise won or the ball stopped. The tail is
+// searched in the recording's whitened signal or in a copy whitened by the room noise's own
+// spectrum with the sequence's members cancelled (each member's sound, the sequence's impact
+// response scaled, subtracted), whichever the tail's last members stand out in more: the first
+// whitens a ringing plate's ringing away, the second keeps a soft ball's thud above the noise
+// where the first flattens it. Each rule is pinned to a factor of 2 by tests/guided_rules_test.cpp.
 #pragma once
 
 #include <cstddef>
@@ -43,6 +47,15 @@ struct GuidedOptions {
   // Right after a member, the next flight may be longer than the one before only within this many
   // sigmas of the two impacts' timing noise (e <= 1, TrackOptions::max_ratio): the sigma rule.
   double ratio_slack_sigmas = 3.0;
+  // The noise-whitened signal the tail may be searched in (guided_search.cpp, NoiseWhitened): its
+  // predictor's order (the recording's whitening's, DetectOptions::lpc_order), fitted on the
+  // quietest noise_frames share of the recording's 20-ms frames (room noise wherever impacts
+  // and their ringing fill less than three quarters of the recording).
+  int lpc_order = 48;
+  double noise_frames = 0.25;
+  // false: the tail is searched in the recording's whitened signal only (as before 2026-12-08;
+  // the rule tests of tests/guided_rules_test.cpp pin the look's rules there).
+  bool noise_signal = true;
   bool IsValid(std::string* error) const;
 };
 

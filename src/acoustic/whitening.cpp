@@ -179,7 +179,12 @@ std::vector<float> Whiten(const std::vector<float>& x, int order, int threads) {
   // A little white-noise floor (-60 dB) keeps the predictor stable on pure tones
   // (lag-window / "white noise correction", Makhoul 1975 sec. III-D).
   r[0] *= 1.0 + 1e-6;
-  const std::vector<double> a = LevinsonDurbin(r, order);
+  return PredictionError(x, LevinsonDurbin(r, order), threads);
+}
+
+std::vector<float> PredictionError(const std::vector<float>& x, const std::vector<double>& a,
+                                   int threads) {
+  const std::size_t n = x.size();
   // e[i] = x[i] + sum_j a[j] x[i - j], in cache-sized blocks (one pass per tap inside a block);
   // every output block depends on x only, so groups of blocks run on the threads.
   std::vector<float> out(x);

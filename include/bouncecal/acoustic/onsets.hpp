@@ -135,6 +135,11 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 // the result does not depend on their number.
 std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1);
 
+// The prediction error of x under the predictor a (a[0] = 1; LevinsonDurbin's), as Whiten
+// computes it (the first samples use the available past).
+std::vector<float> PredictionError(const std::vector<float>& x, const std::vector<double>& a,
+                                   int threads = 1);
+
 // Frame-resolution timing (OnsetOptions::refine = false): moves the onset to the centre of the
 // hop of hop_samples that contains it; sigma_s = hop / sqrt(12) (uniform within the hop).
 // Detection itself does not change: onsets are located (SNR, template, tracking) at full

@@ -3,14 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <utility>
 
 #include <boost/math/distributions/chi_squared.hpp>
 
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
-#include "bouncecal/core/stats.hpp"
+#include "synth/fractional_delay.hpp"
 
 namespace bouncecal {
 
@@ -238,14 +237,7 @@ OnsetResult NoiseWhitened(const OnsetResult& onsets, const std::vector<float>& x
   if (r.template_start >= 0 && r.template_start + tl <= n)
     r.template_wave.assign(r.whitened.begin() + r.template_start,
                            r.whitened.begin() + r.template_start + tl);
-  // Robust rms (median |w| / 0.6745), on at most ~16k samples spread over w.
-  const std::size_t step = std::max<std::size_t>(1, r.whitened.size() / 16384);
-  std::vector<double> a;
-  for (std::size_t i = 0; i < r.whitened.size(); i += step) a.push_back(std::fabs(r.whitened[i]));
-  if (!a.empty()) {
-    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
-    r.noise_rms = a[a.size() / 2] / 0.6745;
-  }
+  r.noise_rms = RobustRms(r.whitened);
   return r;
 }
 
@@ -305,7 +297,6 @@ ImpactResponse ResponseOf(const OnsetResult& noise, const MatchTemplate& tpl, co
 void CancelMember(const ImpactResponse& r, const MatchTemplate& tpl, double rate_hz, double time_s,
                   std::vector<float>* w) {
   constexpr long kHalf = kCancelHalf;
-  constexpr double kBeta = 8.0;  // Kaiser beta (as realsound's placement kernel)
   const long n = static_cast<long>(w->size());
   const long tl = static_cast<long>(tpl.wave.size());
   if (r.s.empty() || !(r.hh > 0.0)) return;
@@ -330,15 +321,11 @@ void CancelMember(const ImpactResponse& r, const MatchTemplate& tpl, double rate
   const double a = (cb - 0.25 * (cm - cp) * d) / r.hh;
   if (!(a > 0.0)) return;
   const long len = std::min(static_cast<long>(r.s.size()), n - kHalf - best);
-  static const double i0 = BesselI0(kBeta);
+  // realsound's placement kernel (fractional_delay.hpp), its window spanning kHalf + 1.
   std::vector<double> taps(static_cast<std::size_t>(2 * kHalf + 1));
-  for (long k = -kHalf; k <= kHalf; ++k) {
-    const double u = static_cast<double>(k) - d, v = u / static_cast<double>(kHalf + 1);
-    const double sinc =
-        std::fabs(u) < 1e-12 ? 1.0 : std::sin(std::numbers::pi * u) / (std::numbers::pi * u);
+  for (long k = -kHalf; k <= kHalf; ++k)
     taps[static_cast<std::size_t>(k + kHalf)] =
-        sinc * BesselI0(kBeta * std::sqrt(1.0 - v * v)) / i0;
-  }
+        fractional_delay::Kernel(static_cast<double>(k) - d, static_cast<int>(kHalf + 1));
   // Sample best + i holds the response at i - d: y[i + kHalf] = sum over k of taps[k + kHalf]
   // s[i - k], s zero outside (one pass per tap over all samples: no reduction in the inner loop).
   const std::size_t out = static_cast<std::size_t>(len + 2 * kHalf);

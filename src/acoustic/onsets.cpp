@@ -17,8 +17,6 @@
 #include "spectra.hpp"
 
 namespace bouncecal {
-namespace {
-
 // Robust rms of x from the median absolute value (Gaussian: rms = median|x| / 0.6745),
 // on at most ~16k samples spread over x.
 double RobustRms(const std::vector<float>& x) {
@@ -29,6 +27,8 @@ double RobustRms(const std::vector<float>& x) {
   for (std::size_t i = 0; i < x.size(); i += step) a.push_back(std::fabs(x[i]));
   return UpperMedian(std::move(a)) / 0.6745;
 }
+
+namespace {
 
 // The rise (RawRiseDb): the mean square over [i, i + after) against [i - before, i - guard).
 // One millisecond holds a hard impact's attack (contact 20-150 us) and its first response; 3 ms

@@ -1,5 +1,6 @@
-// Band-limited interpolation of sampled sound at any time (internal to src/synth): a
-// Kaiser-windowed sinc, kHalfTaps taps on each side. With beta 8 its ripple is within 0.01 dB up
+// Band-limited interpolation of sampled sound at any time (internal to the library: src/synth,
+// and the guided search's cancellation in src/acoustic): a Kaiser-windowed sinc, kHalfTaps taps on
+// each side. With beta 8 its ripple is within 0.01 dB up
 // to 0.8 x Nyquist; above, the sound is attenuated (zero phase: no delay at any frequency).
 // Used to place a real impact sound at a sub-sample time and to align two sounds.
 #pragma once
@@ -17,12 +18,12 @@ namespace bouncecal::fractional_delay {
 inline constexpr int kHalfTaps = 32;
 inline constexpr double kKaiserBeta = 8.0;
 
-// The kernel at offset u (samples): sinc(u) times the Kaiser window over |u| < kHalfTaps.
-inline double Kernel(double u) {
+// The kernel at offset u (samples): sinc(u) times the Kaiser window over |u| < half.
+inline double Kernel(double u, int half = kHalfTaps) {
   const double a = std::fabs(u);
-  if (a >= kHalfTaps) return 0.0;
+  if (a >= half) return 0.0;
   const double sinc = a < 1e-12 ? 1.0 : std::sin(std::numbers::pi * u) / (std::numbers::pi * u);
-  const double r = u / kHalfTaps;
+  const double r = u / half;
   static const double i0_beta = BesselI0(kKaiserBeta);
   return sinc * BesselI0(kKaiserBeta * std::sqrt(1.0 - r * r)) / i0_beta;
 }

@@ -135,6 +135,10 @@ std::vector<double> LevinsonDurbin(const std::vector<double>& r, int order);
 // the result does not depend on their number.
 std::vector<float> Whiten(const std::vector<float>& x, int order, int threads = 1);
 
+// Robust rms of x from the median absolute value (Gaussian: rms = median|x| / 0.6745), on at
+// most ~16k samples spread over x (OnsetResult::noise_rms of the whitened signal).
+double RobustRms(const std::vector<float>& x);
+
 // The prediction error of x under the predictor a (a[0] = 1; LevinsonDurbin's), as Whiten
 // computes it (the first samples use the available past).
 std::vector<float> PredictionError(const std::vector<float>& x, const std::vector<double>& a,

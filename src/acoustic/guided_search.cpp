@@ -9,7 +9,7 @@
 
 #include "bouncecal/acoustic/timing.hpp"
 #include "bouncecal/core/error.hpp"
-#include "synth/fractional_delay.hpp"
+#include "bouncecal/core/fractional_delay.hpp"
 
 namespace bouncecal {
 

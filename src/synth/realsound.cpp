@@ -9,8 +9,8 @@
 
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/format.hpp"
+#include "bouncecal/core/fractional_delay.hpp"
 #include "bouncecal/physics/scene.hpp"
-#include "fractional_delay.hpp"
 #include "random.hpp"
 
 namespace bouncecal {

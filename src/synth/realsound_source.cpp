@@ -11,9 +11,9 @@
 #include "bouncecal/acoustic/audio.hpp"
 #include "bouncecal/core/error.hpp"
 #include "bouncecal/core/format.hpp"
+#include "bouncecal/core/fractional_delay.hpp"
 #include "bouncecal/core/stats.hpp"
 #include "bouncecal/synth/realsound.hpp"
-#include "fractional_delay.hpp"
 
 namespace bouncecal {
 namespace {

@@ -1,6 +1,6 @@
-// Band-limited interpolation of sampled sound at any time (internal to the library: src/synth,
-// and the guided search's cancellation in src/acoustic): a Kaiser-windowed sinc, kHalfTaps taps on
-// each side. With beta 8 its ripple is within 0.01 dB up
+// bouncecal/core/fractional_delay.hpp — band-limited interpolation of sampled sound at any time
+// (realsound's placement and alignment, the guided search's cancellation): a Kaiser-windowed sinc,
+// kHalfTaps taps on each side. With beta 8 its ripple is within 0.01 dB up
 // to 0.8 x Nyquist; above, the sound is attenuated (zero phase: no delay at any frequency).
 // Used to place a real impact sound at a sub-sample time and to align two sounds.
 #pragma once
